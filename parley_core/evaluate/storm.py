@@ -1,0 +1,141 @@
+"""The reference evaluator: instantiate, build with Storm, check. Slow and simple, and the judge."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+import stormpy
+import stormpy.developer as storm_dev
+from attrs import frozen
+
+from parley_core.errors import ModelError
+from parley_core.evaluate import Progress
+from parley_core.model import Family
+from parley_core.prism import program as prism
+
+
+@frozen(kw_only=True)
+class StormTask:
+    """What a process needs to check policies of one family (picklable)."""
+
+    prism: str
+    names: tuple[str, ...]
+    formulas: tuple[str, ...]
+    objective_names: tuple[str, ...]
+
+    @classmethod
+    def of(cls, family: Family) -> StormTask:
+        return cls(
+            prism=family.prism,
+            names=family.names,
+            formulas=tuple(o.formula for o in family.objectives),
+            objective_names=tuple(o.name for o in family.objectives),
+        )
+
+
+class StormChecker:
+    """Checks policies of one family in this process: parse once, then build and check each policy."""
+
+    def __init__(self, task: StormTask) -> None:
+        self.task = task
+        self.program = prism.parse_program(task.prism, origin="the augmented model")
+        self.properties = prism.parse_properties(task.formulas, self.program, origin="objective")
+        for prop, name in zip(self.properties, task.objective_names):
+            prism.check_property_references(prop, self.program, origin=f"objective {name!r}")
+        by_name = {c.name: c.expression_variable for c in self.program.constants}
+        missing = [n for n in task.names if n not in by_name]
+        if missing:
+            raise ModelError(f"the augmented model lacks decision constants {', '.join(missing[:5])}")
+        self.variables = [by_name[n] for n in task.names]
+        self.environment = stormpy.Environment()
+        self.environment.solver().set_linear_equation_solver_type(storm_dev.EquationSolverType.EIGEN)
+
+    def check(self, values) -> list[float]:
+        manager = self.program.expression_manager
+        instance = self.program.define_undefined_constants(
+            {v: manager.integer(int(k)) for v, k in zip(self.variables, values)}
+        )
+        try:
+            model = stormpy.build_model(instance, self.properties)
+        except RuntimeError as exc:
+            raise ModelError(f"Storm cannot build the model: {prism.storm_message(exc)}") from None
+        if len(model.initial_states) != 1:
+            raise ModelError(f"the model has {len(model.initial_states)} initial states; parley needs exactly one")
+        initial = model.initial_states[0]
+        result = []
+        for prop, name in zip(self.properties, self.task.objective_names):
+            try:
+                value = stormpy.model_checking(model, prop, environment=self.environment).get_value(initial)
+            except RuntimeError as exc:
+                raise ModelError(f"Storm cannot check objective {name!r}: {prism.storm_message(exc)}") from None
+            result.append(float(value))
+        return result
+
+
+_CHECKERS: dict[StormTask, StormChecker] = {}
+"""Per worker process: the checker of each task seen (a cache, filled by _worker_check)."""
+
+
+def _worker_check(task: StormTask, values: tuple[int, ...]) -> list[float]:
+    checker = _CHECKERS.get(task)
+    if checker is None:
+        _CHECKERS.clear()
+        checker = _CHECKERS[task] = StormChecker(task)
+    return checker.check(values)
+
+
+class StormEvaluator:
+    """Evaluate policies with Storm, in this process or in ``workers`` processes."""
+
+    name = "storm"
+
+    def __init__(self, family: Family, workers: int | None = None) -> None:
+        self.family = family
+        self.task = StormTask.of(family)
+        self.local = StormChecker(self.task)  # also validates the family before any work is sent out
+        self.workers = max(1, workers if workers is not None else (os.cpu_count() or 1))
+        self._pool: ProcessPoolExecutor | None = None
+
+    def evaluate(self, policies: np.ndarray, progress: Progress | None = None) -> np.ndarray:
+        policies = np.asarray(policies, dtype=np.int64).reshape(-1, len(self.family.decisions))
+        rows = [tuple(int(v) for v in row) for row in policies]
+        out = np.empty((len(rows), len(self.family.objectives)))
+        if self.workers == 1 or len(rows) <= 2:
+            for i, row in enumerate(rows):
+                out[i] = self.local.check(row)
+                if progress:
+                    progress(1)
+            return out
+        pool = self._executor()
+        futures = [pool.submit(_worker_check, self.task, row) for row in rows]
+        for i, future in enumerate(futures):
+            out[i] = future.result()
+            if progress:
+                progress(1)
+        return out
+
+    def _executor(self) -> ProcessPoolExecutor:
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"))
+        return self._pool
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+    def __enter__(self) -> StormEvaluator:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def check_policy(family: Family, values) -> dict[str, float]:
+    """Storm's values of one policy, by objective name (a convenience for tests and scripts)."""
+    checker = StormChecker(StormTask.of(family))
+    return dict(zip((o.name for o in family.objectives), checker.check(values)))
+

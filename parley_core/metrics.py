@@ -1,0 +1,124 @@
+"""Quality of fronts: non-domination, hypervolume, spread, knee point.
+
+Values are given in the objectives' own units with their directions (a tuple of
+:class:`~parley_core.model.Direction`); each function converts to minimisation itself.
+Hypervolume and non-domination come from moocore.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import moocore
+import numpy as np
+
+from parley_core.model import Direction, Objective
+
+
+def _maximise(directions: Sequence[Direction]) -> list[bool]:
+    return [d is Direction.MAX for d in directions]
+
+
+def _as_min(values: np.ndarray, directions: Sequence[Direction]) -> np.ndarray:
+    return np.asarray(values, dtype=float).reshape(-1, len(directions)) * np.array([d.sign for d in directions])
+
+
+def nondominated(values: np.ndarray, directions: Sequence[Direction]) -> np.ndarray:
+    """Boolean mask of the points no other point dominates; of equal points only the first is kept."""
+    values = np.asarray(values, dtype=float).reshape(-1, len(directions))
+    if len(values) == 0:
+        return np.zeros(0, dtype=bool)
+    return np.asarray(moocore.is_nondominated(values, maximise=_maximise(directions), keep_weakly=False))
+
+
+def reference_point(objectives: Sequence[Objective], *sets: np.ndarray) -> np.ndarray:
+    """The hypervolume reference: each objective's ``reference`` if set, else its worst value in
+    ``sets`` moved away by a tenth of the range (so extreme points still count)."""
+    directions = [o.direction for o in objectives]
+    stacked = np.vstack([np.asarray(s, dtype=float).reshape(-1, len(objectives)) for s in sets])
+    as_min = _as_min(stacked, directions)
+    worst = as_min.max(axis=0)
+    best = as_min.min(axis=0)
+    span = worst - best
+    offset = np.where(span > 0, 0.1 * span, np.maximum(0.1 * np.abs(worst), 1.0))
+    ref_min = worst + offset
+    result = ref_min * np.array([d.sign for d in directions])
+    for i, objective in enumerate(objectives):
+        if objective.reference is not None:
+            result[i] = objective.reference
+    return result
+
+
+def hypervolume(values: np.ndarray, directions: Sequence[Direction], reference: Sequence[float]) -> float:
+    """Volume dominated by the points and bounded by ``reference``; points not strictly better
+    than the reference in every objective contribute nothing."""
+    as_min = _as_min(values, directions)
+    ref_min = _as_min(np.asarray(reference, dtype=float), directions)[0]
+    inside = as_min[(as_min < ref_min).all(axis=1)]
+    if len(inside) == 0:
+        return 0.0
+    return float(moocore.hypervolume(inside, ref=ref_min))
+
+
+def spread(
+    values: np.ndarray,
+    directions: Sequence[Direction],
+    *,
+    bounds: tuple[np.ndarray, np.ndarray] | None = None,
+    extremes: np.ndarray | None = None,
+) -> float:
+    """Deb et al.'s spread (Delta, NSGA-II paper, 2002) of a two-objective front; lower is better.
+
+    Delta = (d_f + d_l + sum |d_i - mean d|) / (d_f + d_l + (N - 1) mean d), with d_i the
+    distances between neighbouring points and d_f, d_l the distances from the front's end
+    points to ``extremes`` (two points, e.g. the ends of a reference front; without them
+    d_f = d_l = 0 and only the uniformity of the spacing counts). Objectives are normalised
+    to [0, 1] by ``bounds`` (ideal, nadir) or by the front's own range. Fewer than two
+    points give 1.0.
+    """
+    if len(directions) != 2:
+        raise ValueError("spread is defined for two objectives")
+    points = _as_min(values, directions)
+    if len(points) < 2:
+        return 1.0
+    low, high = (points.min(axis=0), points.max(axis=0)) if bounds is None else (
+        _as_min(bounds[0], directions)[0], _as_min(bounds[1], directions)[0]
+    )
+    low, high = np.minimum(low, high), np.maximum(low, high)
+    scale = np.where(high - low > 0, high - low, 1.0)
+    norm = (points - low) / scale
+    norm = norm[np.lexsort((norm[:, 1], norm[:, 0]))]
+    gaps = np.linalg.norm(np.diff(norm, axis=0), axis=1)
+    mean = gaps.mean()
+    d_f = d_l = 0.0
+    if extremes is not None:
+        ends = (_as_min(extremes, directions) - low) / scale
+        ends = ends[np.argsort(ends[:, 0])]
+        d_f = float(np.linalg.norm(norm[0] - ends[0]))
+        d_l = float(np.linalg.norm(norm[-1] - ends[-1]))
+    denominator = d_f + d_l + (len(norm) - 1) * mean
+    if denominator == 0:
+        return 1.0
+    return float((d_f + d_l + np.abs(gaps - mean).sum()) / denominator)
+
+
+def mean_gap(values: np.ndarray, directions: Sequence[Direction]) -> float:
+    """The paper's "spread" (evaluation.py): mean distance between neighbouring points after
+    normalising each objective by the front's own range; 1.5 when undefined, as there."""
+    points = _as_min(values, directions)
+    span = points.max(axis=0) - points.min(axis=0) if len(points) else np.zeros(len(directions))
+    if len(points) < 2 or (span == 0).any():
+        return 1.5
+    norm = (points - points.min(axis=0)) / span
+    norm = norm[np.argsort(norm[:, 0], kind="stable")]
+    return float(np.linalg.norm(np.diff(norm, axis=0), axis=1).mean())
+
+
+def knee(values: np.ndarray, directions: Sequence[Direction]) -> int:
+    """Index of the point closest to the ideal point after normalising each objective to [0, 1]."""
+    points = _as_min(values, directions)
+    if len(points) == 0:
+        raise ValueError("no points")
+    span = points.max(axis=0) - points.min(axis=0)
+    norm = (points - points.min(axis=0)) / np.where(span > 0, span, 1.0)
+    return int(np.argmin(np.linalg.norm(norm, axis=1)))

@@ -1,0 +1,258 @@
+"""Value objects shared by every stage: what a case study describes, and what a run produces.
+
+All are frozen, keyword-only attrs classes with validators; none of them touches stormpy.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import attrs
+from attrs import field, frozen, validators
+
+from parley_core.errors import ModelError, PolicyError
+
+_IDENTIFIER = validators.matches_re(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+class Direction(enum.Enum):
+    """Whether an objective is to be minimised or maximised."""
+
+    MIN = "min"
+    MAX = "max"
+
+    @property
+    def sign(self) -> float:
+        """+1 for MIN, -1 for MAX: multiply a value by it to get a value to minimise."""
+        return 1.0 if self is Direction.MIN else -1.0
+
+
+class DecisionKind(enum.Enum):
+    """How a service's constant is consulted by the model.
+
+    FREQUENCY: the service runs once a counter reaches the constant (every k-th step).
+    THRESHOLD: the service runs when a monitored value crosses the constant.
+    The kind documents the meaning; augmentation treats both alike.
+    """
+
+    FREQUENCY = "frequency"
+    THRESHOLD = "threshold"
+
+
+def _tuple_of(item_type: type) -> Callable[[Any], tuple]:
+    def convert(value: Any) -> tuple:
+        result = tuple(value)
+        for item in result:
+            if not isinstance(item, item_type):
+                raise TypeError(f"expected {item_type.__name__}, got {type(item).__name__}: {item!r}")
+        return result
+
+    return convert
+
+
+@frozen(kw_only=True)
+class Objective:
+    """A quantity to optimise, given as a PCTL property over the system model.
+
+    ``formula`` is a property of the form ``P=? [...]`` or ``R{"r"}=? [...]``; ``reference`` is
+    the worst value still of interest (the hypervolume reference), or None to derive one from
+    the data.
+    """
+
+    name: str = field(validator=_IDENTIFIER)
+    formula: str = field(validator=validators.min_len(1))
+    direction: Direction = field(converter=Direction)
+    description: str = ""
+    reference: float | None = None
+
+    def to_minimise(self, value: float) -> float:
+        return self.direction.sign * value
+
+
+@frozen(kw_only=True)
+class Service:
+    """An uncertainty-reduction service, and the model constant that decides when it runs.
+
+    In the input DTMC the constant (``constant``) is consulted by the commands that invoke
+    or skip the service; the URC chooses its value, per observation valuation, in
+    ``low..high``.
+    """
+
+    name: str = field(validator=_IDENTIFIER)
+    constant: str = field(validator=_IDENTIFIER)
+    kind: DecisionKind = field(converter=DecisionKind)
+    low: int = field(validator=validators.instance_of(int))
+    high: int = field(validator=validators.instance_of(int))
+    description: str = ""
+
+    @high.validator
+    def _check_range(self, _attribute: attrs.Attribute, high: int) -> None:
+        if high < self.low:
+            raise ModelError(
+                f"service {self.name!r}: empty range {self.low}..{high} for {self.constant}; give LOW..HIGH with LOW <= HIGH"
+            )
+
+    @property
+    def values(self) -> range:
+        return range(self.low, self.high + 1)
+
+
+@frozen(kw_only=True)
+class Baseline:
+    """A reference policy that uses one value per service everywhere (a fixed frequency or threshold)."""
+
+    name: str = field(validator=validators.min_len(1))
+    values: Mapping[str, int] = field(converter=lambda m: dict(m))
+
+
+@frozen(kw_only=True)
+class SystemModel:
+    """What a case study hands to the core: a DTMC with its services, observation and objectives.
+
+    ``prism`` is the DTMC in the PRISM language; it declares each service's constant (undefined,
+    or defined with a default). ``observation`` names the variables the URC may read, in the
+    order that names its decision constants. ``context`` is the plugin's own data (for its
+    plots); the core never looks inside it.
+    """
+
+    name: str = field(validator=_IDENTIFIER)
+    prism: str = field(validator=validators.min_len(1))
+    services: tuple[Service, ...] = field(converter=_tuple_of(Service), validator=validators.min_len(1))
+    observation: tuple[str, ...] = field(converter=tuple, validator=validators.min_len(1))
+    objectives: tuple[Objective, ...] = field(converter=_tuple_of(Objective), validator=validators.min_len(1))
+    baselines: tuple[Baseline, ...] = field(converter=_tuple_of(Baseline), factory=tuple)
+    description: str = ""
+    context: Any = field(default=None, eq=False, repr=False)
+
+    def __attrs_post_init__(self) -> None:
+        for kind, names in (
+            ("objective", [o.name for o in self.objectives]),
+            ("service constant", [s.constant for s in self.services]),
+            ("observation variable", list(self.observation)),
+        ):
+            duplicates = sorted({n for n in names if names.count(n) > 1})
+            if duplicates:
+                raise ModelError(f"duplicate {kind} {', '.join(duplicates)}; give each a distinct name")
+        constants = {s.constant for s in self.services}
+        for baseline in self.baselines:
+            if set(baseline.values) != constants:
+                raise ModelError(
+                    f"baseline {baseline.name!r} sets {sorted(baseline.values)}, expected exactly {sorted(constants)}"
+                )
+
+    def objective(self, name: str) -> Objective:
+        for objective in self.objectives:
+            if objective.name == name:
+                return objective
+        raise ModelError(f"unknown objective {name!r}; valid: {', '.join(o.name for o in self.objectives)}")
+
+
+def decision_name(constant: str, valuation: tuple[int, ...]) -> str:
+    """The decision constant for ``constant`` at an observation valuation: ``c_3_4``, ``c_m2``."""
+    parts = [f"m{-v}" if v < 0 else str(v) for v in valuation]
+    return "_".join([constant, *parts])
+
+
+@frozen(kw_only=True)
+class Decision:
+    """One decision constant of the augmented model: a service's value at one observation valuation."""
+
+    name: str
+    service: Service
+    valuation: tuple[int, ...]
+
+
+@frozen(kw_only=True)
+class Family:
+    """The augmented, parametric model: every policy is an assignment of its decision constants.
+
+    ``prism`` is plain PRISM with each decision declared as an undefined ``const int``;
+    ``decisions`` is their order in every policy vector. ``valuations`` are the observation
+    valuations kept (those in the variables' ranges, minus any reported as unreachable).
+    """
+
+    system: SystemModel
+    prism: str
+    decisions: tuple[Decision, ...]
+    valuations: tuple[tuple[int, ...], ...]
+    left_out: tuple[tuple[int, ...], ...] = ()
+
+    @property
+    def objectives(self) -> tuple[Objective, ...]:
+        return self.system.objectives
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(d.name for d in self.decisions)
+
+    @property
+    def lows(self) -> tuple[int, ...]:
+        return tuple(d.service.low for d in self.decisions)
+
+    @property
+    def highs(self) -> tuple[int, ...]:
+        return tuple(d.service.high for d in self.decisions)
+
+    def properties_text(self) -> str:
+        """The objectives as a properties file, with a ``// name: NAME, DIRECTION`` line each."""
+        lines = []
+        for objective in self.objectives:
+            lines.append(f"// name: {objective.name}, {objective.direction.value}")
+            lines.append(objective.formula)
+        return "\n".join(lines) + "\n"
+
+    def uniform(self, name: str, values: Mapping[str, int]) -> Policy:
+        """The policy that uses ``values[constant]`` for every decision of that service."""
+        return Policy(name=name, values=tuple(values[d.service.constant] for d in self.decisions))
+
+    def baseline_policies(self) -> tuple[Policy, ...]:
+        return tuple(self.uniform(b.name, b.values) for b in self.system.baselines)
+
+    def check(self, policy: Policy) -> None:
+        """Raise PolicyError unless the policy assigns every decision a value in its range."""
+        if len(policy.values) != len(self.decisions):
+            raise PolicyError(
+                f"policy {policy.name!r} has {len(policy.values)} values, the model has {len(self.decisions)} decisions"
+            )
+        for decision, value in zip(self.decisions, policy.values):
+            if not decision.service.low <= value <= decision.service.high:
+                raise PolicyError(
+                    f"policy {policy.name!r}: {decision.name}={value} is outside "
+                    f"{decision.service.low}..{decision.service.high}; use a value in that range"
+                )
+
+
+@frozen(kw_only=True)
+class Policy:
+    """A URC policy: one value per decision constant of a family, in the family's order."""
+
+    name: str
+    values: tuple[int, ...] = field(converter=lambda v: tuple(int(x) for x in v))
+
+
+@frozen(kw_only=True)
+class Front:
+    """Policies with their objective values (in the objectives' own units and directions)."""
+
+    objectives: tuple[Objective, ...] = field(converter=tuple)
+    policies: tuple[Policy, ...] = field(converter=tuple)
+    values: tuple[tuple[float, ...], ...] = field(converter=lambda rows: tuple(tuple(float(v) for v in r) for r in rows))
+
+    def __attrs_post_init__(self) -> None:
+        if len(self.policies) != len(self.values):
+            raise ValueError("a front needs one row of values per policy")
+        for row in self.values:
+            if len(row) != len(self.objectives) or not all(math.isfinite(v) for v in row):
+                raise ValueError(f"bad objective values {row}")
+
+    def __len__(self) -> int:
+        return len(self.policies)
+
+    def rows(self) -> list[dict[str, Any]]:
+        return [
+            {"policy": p.name, **{o.name: v for o, v in zip(self.objectives, row)}}
+            for p, row in zip(self.policies, self.values)
+        ]

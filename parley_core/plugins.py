@@ -1,0 +1,78 @@
+"""The plugin manager: built-in case studies plus those installed under the entry-point group ``parley``."""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Iterable, Mapping
+
+import pluggy
+from attrs import field, frozen
+
+from parley_core import hookspecs
+from parley_core.casestudy import CaseStudy
+from parley_core.errors import PluginError, UnknownCaseStudyError
+
+BUILTIN_PLUGINS = ("parley_plugins.robot_grid",)
+"""Modules registered by every plugin manager, like pytest's default plugins."""
+
+
+def plugin_manager(builtins: Iterable[str] = BUILTIN_PLUGINS, entry_points: bool = True) -> pluggy.PluginManager:
+    """A fresh plugin manager with the built-in plugins and, unless disabled, installed ones."""
+    pm = pluggy.PluginManager(hookspecs.PROJECT)
+    pm.add_hookspecs(hookspecs)
+    for module_name in builtins:
+        pm.register(importlib.import_module(module_name), name=module_name)
+    if entry_points:
+        try:
+            pm.load_setuptools_entrypoints(hookspecs.PROJECT)
+        except Exception as exc:  # an installed plugin failed to import
+            raise PluginError(
+                f"an installed parley plugin failed to load ({type(exc).__name__}: {exc}); "
+                "fix or uninstall it (pip uninstall)"
+            ) from exc
+    return pm
+
+
+@frozen(kw_only=True)
+class Registry:
+    """The registered case studies by name, with the plugin that provided each."""
+
+    case_studies: Mapping[str, CaseStudy] = field(converter=dict)
+    providers: Mapping[str, str] = field(converter=dict)
+
+    @property
+    def names(self) -> list[str]:
+        return sorted(self.case_studies)
+
+    def get(self, name: str) -> CaseStudy:
+        try:
+            return self.case_studies[name]
+        except KeyError:
+            valid = ", ".join(self.names) or "none are registered"
+            raise UnknownCaseStudyError(
+                f"unknown case study {name!r}; valid: {valid} (see `parley list`)"
+            ) from None
+
+
+def load_registry(pm: pluggy.PluginManager | None = None) -> Registry:
+    """Collect every plugin's case studies; duplicate names raise PluginError."""
+    pm = pm if pm is not None else plugin_manager()
+    case_studies: dict[str, CaseStudy] = {}
+    providers: dict[str, str] = {}
+    for impl in reversed(pm.hook.parley_case_studies.get_hookimpls()):
+        provider = pm.get_name(impl.plugin) or repr(impl.plugin)
+        try:
+            provided = impl.function()
+        except Exception as exc:
+            raise PluginError(f"plugin {provider} failed to list its case studies ({type(exc).__name__}: {exc})") from exc
+        for case in provided or ():
+            if not isinstance(case, CaseStudy):
+                raise PluginError(f"plugin {provider} returned {type(case).__name__}, expected CaseStudy")
+            if case.name in case_studies:
+                raise PluginError(
+                    f"case study {case.name!r} is provided twice, by {providers[case.name]} and by {provider}; "
+                    "uninstall one of them or rename its case study"
+                )
+            case_studies[case.name] = case
+            providers[case.name] = provider
+    return Registry(case_studies=case_studies, providers=providers)

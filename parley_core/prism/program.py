@@ -1,0 +1,202 @@
+"""Reading PRISM through stormpy's program API: parse, inspect, and splice rendered parts.
+
+Nothing here looks at PRISM text with regular expressions: programs are parsed by Storm,
+inspected through the API, and printed by Storm's own printer. :func:`splice` replaces the
+printed form of whole modules and constant declarations by new text and checks that each
+replaced part occurs exactly once.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterable, Mapping
+
+import stormpy
+import stormpy.developer as storm_dev
+from stormpy.developer.storage import PrismBooleanVariable, PrismProgram
+
+from parley_core.errors import ModelError
+
+
+def quiet_storm() -> None:
+    """Stop Storm from logging its own errors to stderr; parley reports them as exceptions."""
+    storm_dev.set_log_level(storm_dev.LogLevel.OFF)
+
+
+def storm_message(exc: BaseException) -> str:
+    """Storm's exception text on one line, without the C++ exception class name."""
+    text = str(exc)
+    head, sep, rest = text.partition(": ")
+    if sep and head.endswith("Exception") and " " not in head:
+        text = rest
+    return " ".join(part.strip() for part in text.splitlines() if part.strip())
+
+
+def parse_program(text: str, *, origin: str = "model") -> PrismProgram:
+    """Parse PRISM text as written (no simplification), or raise ModelError with Storm's message."""
+    quiet_storm()
+    fd, path = tempfile.mkstemp(suffix=".prism", prefix="parley-")
+    try:
+        with os.fdopen(fd, "w") as handle:
+            handle.write(text)
+        return stormpy.parse_prism_program(path, simplify=False)
+    except RuntimeError as exc:
+        raise ModelError(f"{origin} does not parse: {storm_message(exc)}") from None
+    finally:
+        os.unlink(path)
+
+
+def parse_properties(formulas: Iterable[str], program: PrismProgram, *, origin: str = "property") -> list:
+    """Parse each formula against the program; an error names the formula and Storm's message."""
+    quiet_storm()
+    parsed = []
+    for formula in formulas:
+        try:
+            properties = stormpy.parse_properties(formula, program)
+        except RuntimeError as exc:
+            raise ModelError(f"{origin} {formula!r} does not parse: {storm_message(exc)}") from None
+        if len(properties) != 1:
+            raise ModelError(f"{origin} {formula!r} holds {len(properties)} properties; give exactly one")
+        parsed.append(properties[0])
+    return parsed
+
+
+def check_property_references(prop, program: PrismProgram, *, origin: str) -> None:
+    """Reject a reward property naming a reward structure the program lacks (labels are checked by Storm when building)."""
+    formula = prop.get_raw_formula()
+    if formula.is_reward_operator_formula:
+        if formula.has_reward_model_name():
+            if not program.has_reward_model(formula.reward_name):
+                names = ", ".join(f'"{r.name}"' for r in program.reward_models) or "none"
+                raise ModelError(
+                    f'{origin} uses reward structure "{formula.reward_name}", which the model lacks; it has: {names}'
+                )
+        elif len(program.reward_models) != 1:
+            raise ModelError(
+                f"{origin} names no reward structure and the model has {len(program.reward_models)}; "
+                'write R{"name"}=? [...]'
+            )
+
+
+def find_variable(program: PrismProgram, name: str):
+    """The integer or boolean variable called ``name`` (global or in a module), or None."""
+    for variable in list(program.global_integer_variables) + list(program.global_boolean_variables):
+        if variable.name == name:
+            return variable
+    for module in program.modules:
+        for variable in list(module.integer_variables) + list(module.boolean_variables):
+            if variable.name == name:
+                return variable
+    return None
+
+
+def variable_domain(program: PrismProgram, name: str, *, origin: str = "observation variable") -> range:
+    """All values of a bounded integer or boolean variable (booleans as 0 and 1)."""
+    variable = find_variable(program, name)
+    if variable is None:
+        known = sorted(v.name for v in all_variables(program))
+        raise ModelError(f"{origin} {name!r} is not a variable of the model; variables: {', '.join(known)}")
+    if isinstance(variable, PrismBooleanVariable) or not hasattr(variable, "lower_bound_expression"):
+        return range(0, 2)
+    variable = find_variable(program.substitute_constants(), name)
+    bounds = []
+    for expression in (variable.lower_bound_expression, variable.upper_bound_expression):
+        # evaluate_as_int crashes the process on an expression that still has variables
+        if expression.get_variables():
+            raise ModelError(
+                f"{origin} {name!r} has bounds [{variable.lower_bound_expression}..{variable.upper_bound_expression}] "
+                "that are not fixed numbers; define the constants its bounds use"
+            )
+        bounds.append(expression.evaluate_as_int())
+    return range(bounds[0], bounds[1] + 1)
+
+
+def is_boolean(program: PrismProgram, name: str) -> bool:
+    return any(v.name == name for v in boolean_variables(program))
+
+
+def boolean_variables(program: PrismProgram) -> list:
+    result = list(program.global_boolean_variables)
+    for module in program.modules:
+        result += list(module.boolean_variables)
+    return result
+
+
+def all_variables(program: PrismProgram) -> list:
+    result = list(program.global_integer_variables) + list(program.global_boolean_variables)
+    for module in program.modules:
+        result += list(module.integer_variables) + list(module.boolean_variables)
+    return result
+
+
+def command_uses(command, variables: set) -> bool:
+    """Whether the command's guard or any of its updates mentions one of ``variables``."""
+    if command.guard_expression.contains_variable(variables):
+        return True
+    for update in command.updates:
+        if update.probability_expression.contains_variable(variables):
+            return True
+        for assignment in update.assignments:
+            if assignment.expression.contains_variable(variables):
+                return True
+    return False
+
+
+def constant_declaration(constant) -> str:
+    """A constant's declaration exactly as Storm prints it."""
+    value = f" = {constant.definition}" if constant.defined else ""
+    return f"const {constant.type} {constant.name}{value};"
+
+
+def splice(
+    program: PrismProgram,
+    *,
+    modules: Mapping[str, str] = {},
+    constants: Mapping[str, str] = {},
+    header: str = "",
+) -> str:
+    """Storm's printing of ``program`` with whole modules and constant declarations replaced.
+
+    ``modules`` maps a module name to its new text, ``constants`` maps a constant name to the
+    lines replacing its declaration (an empty string drops it).
+    """
+    text = str(program)
+    for module in program.modules:
+        if module.name in modules:
+            old = str(module)
+            if text.count(old) != 1:
+                raise RuntimeError(f"module {module.name} is not printed exactly once; cannot splice it")
+            text = text.replace(old, modules[module.name].rstrip("\n") + "\n")
+    lines = text.split("\n")
+    for constant in program.constants:
+        if constant.name in constants:
+            old = constant_declaration(constant)
+            positions = [i for i, line in enumerate(lines) if line == old]
+            if len(positions) != 1:
+                raise RuntimeError(f"constant {constant.name} is not printed exactly once as {old!r}; cannot splice it")
+            lines[positions[0]] = constants[constant.name]
+    text = "\n".join(lines)
+    if header:
+        text = "\n".join(f"// {line}".rstrip() for line in header.splitlines()) + "\n" + text
+    return text
+
+
+def module_with_commands(module, replacements: Mapping[int, list[str]]) -> str:
+    """Storm's printing of ``module`` with the commands of the given global indices replaced by new lines."""
+    by_line: dict[str, list[str]] = {}
+    for command in module.commands:
+        if command.global_index in replacements:
+            by_line[f"\t{command}"] = replacements[command.global_index]
+    out = []
+    seen = set()
+    for line in str(module).split("\n"):
+        if line in by_line:
+            out += [f"\t{new}" for new in by_line[line]]
+            seen.add(line)
+        else:
+            out.append(line)
+    missing = set(by_line) - seen
+    if missing:
+        raise RuntimeError(f"could not find commands {sorted(missing)} in module {module.name}")
+    return "\n".join(out)

@@ -1,0 +1,171 @@
+"""The files of a run: model, properties, front, policies, baseline, summary and plots.
+
+A run directory is written in full next to its destination and then moved into place, so
+an interrupted write never leaves half a run behind.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import platform
+import shutil
+import tempfile
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from parley_core import policies as policy_files  # noqa: E402
+from parley_core.casestudy import options_as_dict  # noqa: E402
+from parley_core.errors import OutputError  # noqa: E402
+from parley_core.model import Front  # noqa: E402
+from parley_core.pipeline import RunResult  # noqa: E402
+
+
+def check_output(out: Path, force: bool) -> None:
+    """Refuse an existing, non-empty output directory unless ``force``."""
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"output {out} exists and is not a directory; choose another --out")
+    if out.is_dir() and any(out.iterdir()) and not force:
+        raise OutputError(f"output directory {out} exists and is not empty; choose another --out or add --force")
+
+
+def front_csv(front: Front, extra: dict[str, list[Any]] | None = None) -> str:
+    """``policy``, then any ``extra`` columns, then one column per objective (full precision)."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    extra = extra or {}
+    writer.writerow(["policy", *extra, *(o.name for o in front.objectives)])
+    for i, (policy, row) in enumerate(zip(front.policies, front.values)):
+        writer.writerow([policy.name, *(column[i] for column in extra.values()), *(repr(v) for v in row)])
+    return out.getvalue()
+
+
+def versions() -> dict[str, str]:
+    result = {"python": platform.python_version()}
+    for package in ("parley", "stormpy", "pymoo", "moocore", "numpy"):
+        try:
+            result[package] = metadata.version(package)
+        except metadata.PackageNotFoundError:
+            result[package] = "unknown"
+    return result
+
+
+def summary(result: RunResult) -> dict[str, Any]:
+    family = result.family
+    search = result.search
+    hv_front = result.hypervolume(result.front)
+    hv_base = result.hypervolume(result.baseline)
+    timings = {k: round(v, 4) for k, v in result.timings.items()}
+    return {
+        "case_study": result.prepared.case.name,
+        "description": result.prepared.system.description,
+        "options": options_as_dict(result.prepared.options),
+        "seed": result.settings.seed,
+        "search": {
+            "algorithm": "NSGA-II (pymoo)",
+            "population": result.settings.population,
+            "generations": result.settings.generations,
+            "generations_done": search.generations,
+            "evaluations": search.evaluations,
+            "interrupted": search.interrupted,
+        },
+        "evaluator": result.evaluator,
+        "workers": result.workers,
+        "model": {
+            "observation": list(family.system.observation),
+            "services": [
+                {"name": s.name, "constant": s.constant, "kind": s.kind.value, "range": [s.low, s.high]}
+                for s in family.system.services
+            ],
+            "decisions": len(family.decisions),
+            "valuations": len(family.valuations),
+            "valuations_left_out": len(family.left_out),
+        },
+        "objectives": [
+            {"name": o.name, "direction": o.direction.value, "formula": o.formula} for o in family.objectives
+        ],
+        "front": {"size": len(result.front), "hypervolume": hv_front, "spread": result.spread(result.front)},
+        "baseline": {"size": len(result.baseline), "hypervolume": hv_base, "spread": result.spread(result.baseline)},
+        "hypervolume_reference": list(result.reference),
+        "hypervolume_gain": hv_front - hv_base,
+        "hypervolume_gain_percent": (100.0 * (hv_front - hv_base) / hv_base) if hv_base > 0 else None,
+        "verification": {
+            "by": result.verification.by,
+            "policies": result.verification.policies,
+            "max_difference": result.verification.max_difference,
+        },
+        "selected": {"policy": result.front.policies[result.selected].name, "rule": "knee (closest to the ideal point, normalised)"},
+        "timings_seconds": timings,
+        "versions": versions(),
+    }
+
+
+def plot_front(result: RunResult, path: Path) -> None:
+    objectives = result.family.objectives
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    if len(objectives) >= 2:
+        i, j = (1, 0) if objectives[0].direction.value == "max" else (0, 1)
+        front = np.array(result.front.values)
+        base = np.array(result.baseline.values)
+        ax.scatter(front[:, i], front[:, j], s=22, facecolors="none", edgecolors="tab:blue", label=f"parley front ({len(front)})")
+        ax.scatter(base[:, i], base[:, j], marker="x", color="tab:red", s=36, label=f"baseline ({len(base)})")
+        chosen = front[result.selected]
+        ax.scatter([chosen[i]], [chosen[j]], s=90, color="tab:blue", label=f"selected {result.front.policies[result.selected].name} (knee)")
+        for policy, row in zip(result.baseline.policies, base):
+            ax.annotate(policy.name.split("-")[-1], (row[i], row[j]), fontsize=7, color="tab:red", xytext=(3, -9), textcoords="offset points")
+        ax.set_xlabel(f"{objectives[i].name} ({objectives[i].direction.value})")
+        ax.set_ylabel(f"{objectives[j].name} ({objectives[j].direction.value})")
+    ax.set_title(f"{result.prepared.case.name}: front vs baseline", fontsize=11)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path]:
+    """Write the run directory; returns the files written."""
+    check_output(out, force)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    family = result.family
+    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    staging.chmod(0o755)
+    try:
+        (staging / "model.prism").write_text(family.prism)
+        (staging / "properties.pctl").write_text(family.properties_text())
+        (staging / "front.csv").write_text(front_csv(result.front))
+        (staging / "policies.csv").write_text(policy_files.wide_csv(family, result.front.policies))
+        constants = [s.constant for s in family.system.services]
+        baseline_columns = {c: [b.values[c] for b in family.system.baselines] for c in constants}
+        (staging / "baseline.csv").write_text(front_csv(result.baseline, baseline_columns))
+        (staging / "summary.json").write_text(json.dumps(summary(result), indent=2) + "\n")
+        plot_front(result, staging / "front.png")
+        case = result.prepared.case
+        if case.plot_policy is not None:
+            selected = result.front.policies[result.selected]
+            case.plot_policy(result.prepared.system, policy_files.table(family, selected), staging / "policy.png")
+        _move_into_place(staging, out)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return sorted(out.iterdir())
+
+
+def _move_into_place(staging: Path, out: Path) -> None:
+    if out.exists():
+        old = out.with_name(f".{out.name}.old")
+        shutil.rmtree(old, ignore_errors=True)
+        os.replace(out, old)
+        os.replace(staging, out)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.replace(staging, out)

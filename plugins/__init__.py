@@ -1,0 +1,1 @@
+"""Built-in case studies of parley (installed as the package ``parley_plugins``)."""

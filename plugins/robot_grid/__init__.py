@@ -1,0 +1,109 @@
+"""robot_grid: the paper's running example.
+
+A robot crosses a grid map from the lower-left to the upper-right corner, following a
+Dijkstra movement controller that acts on its *estimated* position; each move may deviate.
+A localisation service (cost 5) sets the estimate to the true position. The URC decides,
+per estimated cell, after how many moves to localise (1..10).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from attrs import field, frozen, validators
+
+from parley_core import Baseline, CaseStudy, DecisionKind, Direction, Objective, Service, SystemModel, hookimpl
+from parley_plugins.robot_grid import grid as grids
+from parley_plugins.robot_grid.generator import prism_model
+from parley_plugins.robot_grid.planner import plan
+
+
+def _positive(_instance, attribute, value) -> None:
+    if value <= 0:
+        raise ValueError(f"option {attribute.name} must be positive, got {value}")
+
+
+@frozen(kw_only=True)
+class RobotGridOptions:
+    map: Path | None = field(default=None, metadata={"help": "CSV map in the paper's package format; default: generate one"})
+    size: int = field(default=10, validator=validators.ge(2), metadata={"help": "side of a generated map"})
+    seed: int = field(default=0, metadata={"help": "seed of a generated map"})
+    p: float = field(
+        default=0.01,
+        validator=[validators.ge(0.0), validators.le(1 / 3)],
+        metadata={"help": "probability that a move deviates to each of the three other directions"},
+    )
+    horizon: int = field(
+        default=100, validator=_positive, metadata={"help": "steps of the cost objective C<=horizon (a move is 3 steps)"}
+    )
+    max_interval: int = field(default=10, validator=_positive, metadata={"help": "largest localisation interval (moves)"})
+    move_cost: float = field(default=1.0, validator=validators.ge(0.0), metadata={"help": "cost of a move"})
+    localisation_cost: float = field(default=5.0, validator=validators.ge(0.0), metadata={"help": "cost of a localisation"})
+
+
+def build(options: RobotGridOptions) -> SystemModel:
+    grid = grids.load_csv(options.map) if options.map is not None else grids.generate(options.size, options.seed)
+    moves = plan(grid)
+    text = prism_model(
+        grid,
+        moves,
+        p=options.p,
+        max_interval=options.max_interval,
+        move_cost=options.move_cost,
+        localisation_cost=options.localisation_cost,
+    )
+    return SystemModel(
+        name="robot_grid",
+        description=f"robot on {grid.width}x{grid.height} map {grid.source}",
+        prism=text,
+        services=[
+            Service(
+                name="localisation",
+                constant="c",
+                kind=DecisionKind.FREQUENCY,
+                low=1,
+                high=options.max_interval,
+                description="localise once the move counter reaches c (every c-th move)",
+            )
+        ],
+        observation=("xhat", "yhat"),
+        objectives=[
+            Objective(
+                name="success",
+                formula='P=? [F "goal"]',
+                direction=Direction.MAX,
+                description="probability of reaching the target without crashing",
+                reference=0.0,
+            ),
+            Objective(
+                name="cost",
+                formula=f'R{{"cost"}}=? [C<={options.horizon}]',
+                direction=Direction.MIN,
+                description=f"expected cost of moves and localisations within {options.horizon} steps",
+            ),
+        ],
+        baselines=[Baseline(name=f"interval-{k}", values={"c": k}) for k in range(1, options.max_interval + 1)],
+        context=(grid, moves),
+    )
+
+
+def plot_policy(system: SystemModel, table, path: Path) -> None:
+    from parley_plugins.robot_grid.plot import draw_policy
+
+    grid, moves = system.context
+    draw_policy(grid, moves, {cell: values["c"] for cell, values in table.items()}, path)
+
+
+CASE_STUDY = CaseStudy(
+    name="robot_grid",
+    description="Robot on a grid map: when to localise, per estimated cell (the paper's running example)",
+    options_type=RobotGridOptions,
+    build=build,
+    plot_policy=plot_policy,
+    quick={"size": "5", "seed": "1", "horizon": "45", "max_interval": "4"},
+)
+
+
+@hookimpl
+def parley_case_studies() -> list[CaseStudy]:
+    return [CASE_STUDY]

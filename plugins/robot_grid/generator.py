@@ -1,0 +1,154 @@
+"""The robot_grid DTMC, with the localisation interval as the constant ``c``.
+
+The structure follows the replication package's URC models (``model_N_umc.prism``) so that
+any policy gets the same values as on those files:
+
+- ``Robot``: the true position (x, y); a move goes the intended way with probability 1-3p and
+  to each other direction with probability p, clamped at the border; ``check`` marks a
+  crash on an obstacle, after which the robot never moves again; ``stucked`` is the crashed
+  robot's self-loop, as in the package.
+- ``Controller`` (the UAC): one move per estimated cell (xhat, yhat), from Dijkstra.
+- ``Knowledge``: the estimate, updated as if every move succeeded, and the move counter
+  ``step`` (1 after a localisation); ``localise`` (step >= c) sets the estimate to the true
+  position, ``skip`` (step < c) counts on.
+- ``Turn``: move, check, then localise or skip: one robot move is three DTMC steps.
+
+Rewards "cost": ``move_cost`` per move, ``localisation_cost`` per localisation.
+"""
+
+from __future__ import annotations
+
+from parley_core.prism.writer import (
+    Command,
+    Constant,
+    Formula,
+    Label,
+    Module,
+    Program,
+    RewardItem,
+    Rewards,
+    Update,
+    Variable,
+    conjunction,
+    disjunction,
+)
+from parley_plugins.robot_grid.grid import Grid
+from parley_plugins.robot_grid.planner import MOVES
+
+# For each intended move, the outcome of each actual direction, in the package's order.
+_OUTCOMES = {
+    "east": ("x", "min(x+1, W)"),
+    "north": ("y", "min(y+1, H)"),
+    "south": ("y", "max(y-1, 0)"),
+    "west": ("x", "max(x-1, 0)"),
+}
+_ESTIMATE = {
+    "west": ("xhat", "max(xhat-1, 0)"),
+    "east": ("xhat", "min(xhat+1, W)"),
+    "south": ("yhat", "max(yhat-1, 0)"),
+    "north": ("yhat", "min(yhat+1, H)"),
+}
+
+
+def prism_model(
+    grid: Grid,
+    moves: dict[tuple[int, int], str],
+    *,
+    p: float,
+    max_interval: int,
+    move_cost: float,
+    localisation_cost: float,
+) -> str:
+    """The DTMC text for ``grid`` with the movement controller ``moves``."""
+    x_target, y_target = grid.target
+    crash = disjunction(f"x={x} & y={y}" for x, y in grid.obstacles())
+
+    robot_commands = [
+        Command(
+            action=move,
+            updates=[
+                Update(assignments=[_OUTCOMES[direction]], probability="1-3*p" if direction == move else "p")
+                for direction in ("east", "north", "south", "west")
+            ],
+        )
+        for move in MOVES
+    ]
+    robot_commands += [
+        Command(action="check", guard="hasCrashed", updates=[Update(assignments={"crashed": "1"})]),
+        Command(action="check", guard="!hasCrashed", updates=[Update()]),
+        Command(action="stucked", guard="crashed=1", updates=[Update()]),
+    ]
+    robot = Module(
+        name="Robot",
+        variables=[
+            Variable(name="x", low=0, high="W", init=grid.start[0]),
+            Variable(name="y", low=0, high="H", init=grid.start[1]),
+            Variable(name="crashed", low=0, high=1, init=0),
+        ],
+        commands=robot_commands,
+    )
+    controller = Module(
+        name="Controller",
+        commands=[
+            Command(action=moves[cell], guard=f"xhat={cell[0]} & yhat={cell[1]} & crashed=0")
+            for cell in grid.cells()
+            if cell in moves
+        ],
+    )
+    knowledge = Module(
+        name="Knowledge",
+        variables=[
+            Variable(name="xhat", low=0, high="W", init=grid.start[0], comment="estimated position"),
+            Variable(name="yhat", low=0, high="H", init=grid.start[1]),
+            Variable(name="step", low=1, high="maxStep", init=1, comment="moves since the last localisation"),
+        ],
+        commands=[
+            *(Command(action=move, updates=[Update(assignments=[_ESTIMATE[move]])]) for move in MOVES),
+            Command(
+                action="localise",
+                guard="step>=c",
+                updates=[Update(assignments={"xhat": "x", "yhat": "y", "step": "1"})],
+            ),
+            Command(action="skip", guard="step<c", updates=[Update(assignments={"step": "step+1"})]),
+        ],
+    )
+    turn = Module(
+        name="Turn",
+        variables=[Variable(name="t", low=0, high=2, init=0, comment="0 move, 1 check, 2 localise or skip")],
+        commands=[
+            *(Command(action=move, guard="t=0", updates=[Update(assignments={"t": "1"})]) for move in MOVES),
+            Command(action="check", guard="t=1", updates=[Update(assignments={"t": "2"})]),
+            Command(action="localise", guard="t=2", updates=[Update(assignments={"t": "0"})]),
+            Command(action="skip", guard="t=2", updates=[Update(assignments={"t": "0"})]),
+        ],
+    )
+    program = Program(
+        header=(
+            f"robot_grid: {grid.width}x{grid.height} map {grid.source}; start {grid.start}, target {grid.target}.\n"
+            "The localisation service runs once the move counter reaches c (every c-th move)."
+        ),
+        constants=[
+            Constant(name="W", value=grid.width - 1, comment="largest x"),
+            Constant(name="H", value=grid.height - 1, comment="largest y"),
+            Constant(name="p", type="double", value=p, comment="probability of deviating to each other direction"),
+            Constant(name="maxStep", value=max_interval),
+            Constant(name="c", comment=f"localisation interval in moves, 1..{max_interval}"),
+        ],
+        formulas=[Formula(name="hasCrashed", expression=crash)],
+        modules=[robot, controller, knowledge, turn],
+        rewards=[
+            Rewards(
+                name="cost",
+                items=[
+                    *(RewardItem(action=move, value=move_cost) for move in MOVES),
+                    RewardItem(action="localise", value=localisation_cost),
+                ],
+            )
+        ],
+        labels=[
+            Label(name="goal", expression=conjunction([f"x={x_target}", f"y={y_target}", "crashed=0"])),
+            Label(name="crashed", expression="crashed=1"),
+        ],
+    )
+    return program.render()
+
