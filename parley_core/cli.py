@@ -83,7 +83,8 @@ class RichReporter:
     def _finish(self) -> None:
         if self.task is not None:
             task = self.progress.tasks[-1]
-            self.progress.update(self.task, total=task.completed if task.total is None else task.total, completed=task.total or task.completed)
+            total = task.total if task.total is not None else max(task.completed, 1)
+            self.progress.update(self.task, total=total, completed=total)
 
     def stage(self, name: str, total: int | None = None) -> None:
         self._finish()
@@ -182,7 +183,7 @@ def options_command(case: Annotated[str, typer.Argument(help="Case study name (s
     for column in ("option", "type", "default", "meaning"):
         table.add_column(column)
     for f in study.option_fields():
-        kind = getattr(f.type, "__name__", None) or str(f.type)
+        kind = str(f.type).replace("pathlib.", "").replace("Path", "path") if not isinstance(f.type, type) else f.type.__name__
         table.add_row(f.name, kind, str(f.default), f.metadata.get("help", ""))
     Console().print(table)
 
@@ -193,8 +194,8 @@ def run_command(
     case: Annotated[str, typer.Argument(help="Case study name (see `parley list`).")],
     set_: SetOption = None,
     seed: Annotated[int, typer.Option(help="Seed of the search; the same seed gives the same front.")] = 1,
-    population: Annotated[int, typer.Option(min=2, help="NSGA-II population size.")] = 40,
-    generations: Annotated[int, typer.Option(min=1, help="NSGA-II generations.")] = 10,
+    population: Annotated[int, typer.Option(min=2, help="NSGA-II population size.")] = 50,
+    generations: Annotated[int, typer.Option(min=1, help="NSGA-II generations.")] = 20,
     out: Annotated[Path | None, typer.Option(help="Run directory (default: runs/CASE-TIMESTAMP).")] = None,
     force: Annotated[bool, typer.Option(help="Replace the files of an existing --out directory.")] = False,
     workers: WorkersOption = None,

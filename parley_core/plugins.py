@@ -59,7 +59,7 @@ def load_registry(pm: pluggy.PluginManager | None = None) -> Registry:
     pm = pm if pm is not None else plugin_manager()
     case_studies: dict[str, CaseStudy] = {}
     providers: dict[str, str] = {}
-    for impl in reversed(pm.hook.parley_case_studies.get_hookimpls()):
+    for impl in pm.hook.parley_case_studies.get_hookimpls():  # registration order
         provider = pm.get_name(impl.plugin) or repr(impl.plugin)
         try:
             provided = impl.function()

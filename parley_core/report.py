@@ -79,6 +79,7 @@ def summary(result: RunResult) -> dict[str, Any]:
             "interrupted": search.interrupted,
         },
         "evaluator": result.evaluator,
+        "storm_solver": "Eigen sparse LU (direct) for DTMC equation systems",
         "workers": result.workers,
         "model": {
             "observation": list(family.system.observation),

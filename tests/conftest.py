@@ -1,0 +1,75 @@
+"""Shared fixtures: a toy system model small enough to reason about by hand."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+
+import pytest
+import stormpy
+
+from parley_core import Baseline, DecisionKind, Direction, Objective, Service, SystemModel
+from parley_core.prism.program import quiet_storm
+
+# A server that is healthy (h=1) or degraded (h=0); each round it degrades with probability
+# 0.2 (from healthy) and, unless probed, stays as it is. A probe (every c-th round, counted by
+# step) repairs it at cost 3. Each degraded round costs 1. The observation is the phase
+# (0 or 1), which alternates every round.
+TOY = """dtmc
+const int c;
+const int K = 3;
+module Server
+  h : [0..1] init 1;
+  phase : [0..1] init 0;
+  step : [1..K] init 1;
+  [probe] step>=c -> 0.8 : (h'=1) & (phase'=1-phase) & (step'=1) + 0.2 : (h'=0) & (phase'=1-phase) & (step'=1);
+  [wait] step<c & h=1 -> 0.8 : (phase'=1-phase) & (step'=step+1) + 0.2 : (h'=0) & (phase'=1-phase) & (step'=step+1);
+  [wait] step<c & h=0 -> (phase'=1-phase) & (step'=step+1);
+endmodule
+rewards "cost"
+  [probe] true : 3;
+  h=0 : 1;
+endrewards
+label "healthy" = h=1;
+"""
+
+
+def toy_system(prism: str = TOY, **changes) -> SystemModel:
+    fields = dict(
+        name="toy",
+        prism=prism,
+        services=[Service(name="probe", constant="c", kind=DecisionKind.FREQUENCY, low=1, high=3)],
+        observation=("phase",),
+        objectives=[
+            Objective(name="cost", formula='R{"cost"}=? [C<=10]', direction=Direction.MIN),
+            Objective(name="healthy", formula='P=? [F<=3 !"healthy"]', direction=Direction.MIN),
+        ],
+        baselines=[Baseline(name=f"every-{k}", values={"c": k}) for k in (1, 2, 3)],
+    )
+    fields.update(changes)
+    return SystemModel(**fields)
+
+
+@pytest.fixture
+def toy() -> SystemModel:
+    return toy_system()
+
+
+def storm_values(prism_text: str, formulas: list[str], constants: dict[str, int] | None = None) -> list[float]:
+    """Check formulas on PRISM text with plain stormpy calls (independent of parley's evaluator)."""
+    quiet_storm()
+    fd, path = tempfile.mkstemp(suffix=".prism")
+    with os.fdopen(fd, "w") as handle:
+        handle.write(prism_text)
+    try:
+        program = stormpy.parse_prism_program(path)
+    finally:
+        os.unlink(path)
+    if constants:
+        manager = program.expression_manager
+        by_name = {c.name: c.expression_variable for c in program.constants}
+        program = program.define_undefined_constants({by_name[k]: manager.integer(v) for k, v in constants.items()})
+    properties = stormpy.parse_properties(";".join(formulas), program)
+    model = stormpy.build_model(program, properties)
+    state = model.initial_states[0]
+    return [stormpy.model_checking(model, p).get_value(state) for p in properties]

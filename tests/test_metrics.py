@@ -1,0 +1,62 @@
+"""Metrics on fronts whose values are worked out by hand."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from parley_core import metrics
+from parley_core.model import Direction, Objective
+
+MAX_MIN = [Direction.MAX, Direction.MIN]
+
+
+def test_nondominated_respects_directions_and_keeps_one_of_equal_points():
+    values = np.array([[0.9, 50], [0.8, 40], [0.8, 60], [0.9, 50], [0.7, 45]])
+    assert metrics.nondominated(values, MAX_MIN).tolist() == [True, True, False, False, False]
+
+
+def test_hypervolume_of_a_staircase():
+    # success 0.8 at cost 50 and 0.7 at cost 40, reference (0, 100):
+    # 0.7*60 (cost 40..100) plus the extra 0.1*50 that the first point adds.
+    values = np.array([[0.8, 50.0], [0.7, 40.0]])
+    assert metrics.hypervolume(values, MAX_MIN, [0.0, 100.0]) == pytest.approx(0.7 * 60 + 0.1 * 50)
+
+
+def test_points_outside_the_reference_add_nothing():
+    values = np.array([[0.8, 50.0], [0.9, 120.0]])
+    assert metrics.hypervolume(values, MAX_MIN, [0.0, 100.0]) == pytest.approx(0.8 * 50)
+    assert metrics.hypervolume(np.zeros((0, 2)), MAX_MIN, [0.0, 100.0]) == 0.0
+
+
+def test_reference_point_uses_objective_references_or_worst_plus_a_tenth():
+    objectives = [
+        Objective(name="s", formula="P=? [F true]", direction="max", reference=0.0),
+        Objective(name="c", formula='R{"c"}=? [C<=1]', direction="min"),
+    ]
+    ref = metrics.reference_point(objectives, np.array([[0.9, 10.0]]), np.array([[0.5, 30.0]]))
+    assert ref.tolist() == pytest.approx([0.0, 32.0])
+
+
+def test_spread_of_evenly_spaced_points_is_zero_and_grows_with_unevenness():
+    even = np.array([[0.0, 1.0], [0.5, 0.5], [1.0, 0.0]])
+    assert metrics.spread(even, [Direction.MIN, Direction.MIN]) == pytest.approx(0.0)
+    uneven = np.array([[0.0, 1.0], [0.1, 0.9], [1.0, 0.0]])
+    # gaps: 0.1*sqrt2 and 0.9*sqrt2, mean 0.5*sqrt2 -> (0.4+0.4)/(2*0.5) = 0.8
+    assert metrics.spread(uneven, [Direction.MIN, Direction.MIN]) == pytest.approx(0.8)
+    # extreme points 0.1 away (normalised) at both ends add d_f = d_l = 0.1
+    extremes = np.array([[-0.1, 1.0], [1.1, 0.0]])
+    expected = (0.1 + 0.1 + 0.8 * np.sqrt(2)) / (0.2 + 2 * 0.5 * np.sqrt(2))
+    assert metrics.spread(uneven, [Direction.MIN, Direction.MIN], bounds=(np.array([0, 0]), np.array([1, 1])), extremes=extremes) == pytest.approx(expected)
+    assert metrics.spread(even[:1], [Direction.MIN, Direction.MIN]) == 1.0
+
+
+def test_mean_gap_is_the_papers_spread():
+    points = np.array([[0.0, 1.0], [0.5, 0.5], [1.0, 0.0]])
+    assert metrics.mean_gap(points, [Direction.MIN, Direction.MIN]) == pytest.approx(np.sqrt(0.5))
+    assert metrics.mean_gap(points[:1], [Direction.MIN, Direction.MIN]) == 1.5
+
+
+def test_knee_is_closest_to_the_ideal_point():
+    values = np.array([[0.6, 10.0], [0.85, 20.0], [0.9, 100.0]])
+    assert metrics.knee(values, MAX_MIN) == 1

@@ -1,0 +1,113 @@
+"""The plugin contract: built-ins, entry points, duplicate and unknown names."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import types
+from pathlib import Path
+
+import attrs
+import pytest
+
+from parley_core import CaseStudy, hookimpl
+from parley_core.errors import PluginError, UnknownCaseStudyError
+from parley_core.plugins import load_registry, plugin_manager
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@attrs.frozen
+class _Empty:
+    pass
+
+EXAMPLE = ROOT / "docs" / "examples" / "parley-thermostat"
+
+
+def test_builtins_are_registered():
+    registry = load_registry(plugin_manager(entry_points=False))
+    assert "robot_grid" in registry.names
+    assert registry.providers["robot_grid"] == "parley_plugins.robot_grid"
+
+
+def test_unknown_case_study_lists_the_valid_names():
+    registry = load_registry(plugin_manager(entry_points=False))
+    with pytest.raises(UnknownCaseStudyError, match=r"unknown case study 'robot'; valid: .*robot_grid"):
+        registry.get("robot")
+
+
+def _plugin(name: str) -> types.ModuleType:
+    module = types.ModuleType(f"fake_{name}")
+
+    @hookimpl
+    def parley_case_studies():
+        return [CaseStudy(name=name, description="fake", options_type=_Empty, build=lambda o: None)]
+
+    module.parley_case_studies = parley_case_studies
+    return module
+
+
+def test_duplicate_names_are_an_error_naming_both_plugins():
+    pm = plugin_manager(entry_points=False)
+    pm.register(_plugin("robot_grid"), name="impostor")
+    with pytest.raises(PluginError, match="'robot_grid' is provided twice, by parley_plugins.robot_grid and by impostor"):
+        load_registry(pm)
+
+
+def test_a_plugin_returning_something_else_is_an_error():
+    module = types.ModuleType("odd")
+
+    @hookimpl
+    def parley_case_studies():
+        return ["not a case study"]
+
+    module.parley_case_studies = parley_case_studies
+    pm = plugin_manager(entry_points=False)
+    pm.register(module, name="odd")
+    with pytest.raises(PluginError, match="plugin odd returned str, expected CaseStudy"):
+        load_registry(pm)
+
+
+def _install_example(site: Path) -> dict[str, str]:
+    """Put the example plugin and its distribution metadata (with the entry point) on a path."""
+    shutil.copy(EXAMPLE / "parley_thermostat.py", site)
+    info = site / "parley_thermostat-0.1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: parley-thermostat\nVersion: 0.1.0\n")
+    (info / "entry_points.txt").write_text("[parley]\nthermostat = parley_thermostat\n")
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(site), env.get("PYTHONPATH", "")])
+    return env
+
+
+def test_an_installed_plugin_is_found_through_its_entry_point_and_runs(tmp_path):
+    env = _install_example(tmp_path)
+    listed = subprocess.run([sys.executable, "-m", "parley_core", "list"], env=env, capture_output=True, text=True, timeout=120)
+    assert listed.returncode == 0, listed.stderr
+    assert "thermostat" in listed.stdout and "robot_grid" in listed.stdout
+    baseline = subprocess.run(
+        [sys.executable, "-m", "parley_core", "baseline", "thermostat", "--json", "--workers", "1"],
+        env=env, capture_output=True, text=True, timeout=120,
+    )
+    assert baseline.returncode == 0, baseline.stderr
+    document = json.loads(baseline.stdout)
+    by_name = {p["policy"]: p["values"] for p in document["policies"]}
+    # Calibrating every round keeps the room comfortable: the controller always knows the
+    # temperature and corrects one level of drift at a time. 20 rounds -> 20 calibrations.
+    assert by_name["every-1"]["discomfort"] == pytest.approx(0.0, abs=1e-12)
+    assert by_name["every-1"]["calibrations"] == pytest.approx(20.0, abs=1e-9)
+    assert by_name["every-2"]["calibrations"] == pytest.approx(10.0, abs=1e-9)
+    assert 0 < by_name["every-2"]["discomfort"] < by_name["every-4"]["discomfort"]
+
+
+def test_a_broken_installed_plugin_is_a_clear_error(tmp_path):
+    env = _install_example(tmp_path)
+    (tmp_path / "parley_thermostat.py").write_text("raise ImportError('boom')\n")
+    listed = subprocess.run([sys.executable, "-m", "parley_core", "list"], env=env, capture_output=True, text=True, timeout=120)
+    assert listed.returncode == 2
+    assert listed.stderr.strip().startswith("error: an installed parley plugin failed to load (ImportError: boom)")
+    assert "Traceback" not in listed.stderr
+
