@@ -76,8 +76,11 @@ class RichReporter:
         self.progress.start()
         return self
 
-    def __exit__(self, *exc) -> None:
-        self._finish()
+    def __exit__(self, kind, value, traceback) -> None:
+        if kind is None:
+            self._finish()
+        else:  # an error: leave nothing behind but its message
+            self.progress.live.transient = True
         self.progress.stop()
 
     def _finish(self) -> None:

@@ -7,7 +7,8 @@ any policy gets the same values as on those files:
   to each other direction with probability p, clamped at the border; ``check`` marks a
   crash on an obstacle, after which the robot never moves again; ``stucked`` is the crashed
   robot's self-loop, as in the package.
-- ``Controller`` (the UAC): one move per estimated cell (xhat, yhat), from Dijkstra.
+- ``Controller`` (the UAC): one move per estimated cell (xhat, yhat), from Dijkstra; a move
+  that no cell plans still appears (never enabled), so that it is in the module's alphabet.
 - ``Knowledge``: the estimate, updated as if every move succeeded, and the move counter
   ``step`` (1 after a localisation); ``localise`` (step >= c) sets the estimate to the true
   position, ``skip`` (step < c) counts on.
@@ -87,12 +88,17 @@ def prism_model(
         ],
         commands=robot_commands,
     )
+    # Every move must be in the Controller's alphabet, or PRISM would let an unused one
+    # happen anywhere: a move no cell plans gets a command that is never enabled.
     controller = Module(
         name="Controller",
         commands=[
-            Command(action=moves[cell], guard=f"xhat={cell[0]} & yhat={cell[1]} & crashed=0")
-            for cell in grid.cells()
-            if cell in moves
+            *(
+                Command(action=moves[cell], guard=f"xhat={cell[0]} & yhat={cell[1]} & crashed=0")
+                for cell in grid.cells()
+                if cell in moves
+            ),
+            *(Command(action=move, guard="false") for move in MOVES if move not in moves.values()),
         ],
     )
     knowledge = Module(

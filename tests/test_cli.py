@@ -1,0 +1,146 @@
+"""The parley command: outputs, JSON documents, run directories and one-line user errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from parley_core.cli import app
+
+runner = CliRunner()
+QUICK = ["--set", "size=5", "--set", "seed=1", "--set", "max_interval=4", "--set", "horizon=45", "--workers", "1"]
+
+
+def invoke(*args: str):
+    return runner.invoke(app, list(args))
+
+
+def assert_user_error(result, message: str) -> None:
+    assert result.exit_code == 2, (result.stdout, result.stderr)
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("error: ")
+    assert message in lines[0]
+    assert "Traceback" not in result.stderr and result.exception is None or isinstance(result.exception, SystemExit)
+
+
+@pytest.fixture
+def free_map(tmp_path):
+    """A 3x3 map without obstacles: with p=0 the robot never deviates."""
+    path = tmp_path / "free.csv"
+    path.write_text("0,0,0\n0,0,0\n0,0,0\n")
+    return path
+
+
+def test_list_shows_the_builtin_case_study():
+    result = invoke("list")
+    assert result.exit_code == 0
+    assert "robot_grid" in result.stdout
+
+
+def test_options_lists_defaults():
+    result = invoke("options", "robot_grid")
+    assert result.exit_code == 0
+    assert "horizon" in result.stdout and "100" in result.stdout
+
+
+def test_baseline_json_on_a_map_without_uncertainty(free_map):
+    # p=0: four moves to the target, always successful; interval k localises floor(4/k) times.
+    result = invoke("baseline", "robot_grid", "--set", f"map={free_map}", "--set", "p=0", "--json", "--workers", "1")
+    assert result.exit_code == 0, result.stderr
+    document = json.loads(result.stdout)
+    assert document["case_study"] == "robot_grid"
+    assert [o["name"] for o in document["objectives"]] == ["success", "cost"]
+    assert len(document["policies"]) == 10
+    for entry in document["policies"]:
+        k = entry["decisions"]["c"]
+        assert entry["values"]["success"] == pytest.approx(1.0, abs=1e-12)
+        assert entry["values"]["cost"] == pytest.approx(4 + 5 * (4 // k), abs=1e-9)
+
+
+def test_evaluate_constant_and_policies_file_agree_with_the_baseline(free_map, tmp_path):
+    baseline = json.loads(invoke("baseline", "robot_grid", *QUICK, "--json").stdout)
+    by_name = {p["policy"]: p["values"] for p in baseline["policies"]}
+    result = invoke("evaluate", "robot_grid", *QUICK, "--constant", "2", "--json")
+    assert result.exit_code == 0, result.stderr
+    assert json.loads(result.stdout)["policies"][0]["values"] == pytest.approx(by_name["interval-2"])
+
+    rows = ["policy,xhat,yhat,c"] + [f"two,{x},{y},2" for x in range(5) for y in range(5)]
+    (tmp_path / "p.csv").write_text("\n".join(rows) + "\n")
+    result = invoke("evaluate", "robot_grid", *QUICK, "--policies", str(tmp_path / "p.csv"), "--json")
+    assert result.exit_code == 0, result.stderr
+    assert json.loads(result.stdout)["policies"][0]["values"] == pytest.approx(by_name["interval-2"])
+
+
+def test_run_writes_the_run_directory_and_is_reproducible(tmp_path):
+    first, second = tmp_path / "a", tmp_path / "b"
+    for out in (first, second):
+        result = invoke("run", "robot_grid", *QUICK, "--population", "8", "--generations", "3", "--seed", "7", "--out", str(out))
+        assert result.exit_code == 0, result.stderr
+    names = {p.name for p in first.iterdir()}
+    assert names == {
+        "model.prism", "properties.pctl", "front.csv", "policies.csv", "baseline.csv", "summary.json", "front.png", "policy.png"
+    }
+    assert (first / "front.csv").read_text() == (second / "front.csv").read_text()
+    assert (first / "policies.csv").read_text() == (second / "policies.csv").read_text()
+    with open(first / "front.csv") as handle:
+        header = next(csv.reader(handle))
+    assert header == ["policy", "success", "cost"]
+    with open(first / "policies.csv") as handle:
+        header = next(csv.reader(handle))
+    assert header[:3] == ["policy", "c_0_0", "c_0_1"] and len(header) == 26
+    summary = json.loads((first / "summary.json").read_text())
+    assert summary["seed"] == 7 and summary["search"]["population"] == 8
+    assert summary["front"]["hypervolume"] >= summary["baseline"]["hypervolume"]
+    assert "Pareto front" in result.stdout and "hypervolume" in result.stdout
+
+
+def test_run_refuses_a_non_empty_output_directory(tmp_path):
+    (tmp_path / "keep.txt").write_text("mine")
+    result = invoke("run", "robot_grid", *QUICK, "--out", str(tmp_path))
+    assert_user_error(result, "exists and is not empty; choose another --out or add --force")
+    assert (tmp_path / "keep.txt").read_text() == "mine"
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["run", "robot"], "unknown case study 'robot'; valid: robot_grid"),
+        (["baseline", "robot_grid", "--set", "size"], "malformed option 'size'; write KEY=VALUE"),
+        (["baseline", "robot_grid", "--set", "colour=red"], "unknown option 'colour' for robot_grid"),
+        (["baseline", "robot_grid", "--set", "size=big"], "option size='big' for robot_grid: expected int"),
+        (["baseline", "robot_grid", "--set", "p=0.5"], "'p' must be <= 0.333"),
+        (["baseline", "robot_grid", "--set", "map=/no/such/map.csv"], "map file /no/such/map.csv does not exist"),
+        (["evaluate", "robot_grid", "--set", "size=3"], "give exactly one of --policies FILE and --constant K"),
+        (["evaluate", "robot_grid", "--set", "size=3", "--constant", "11"], "is outside 1..10"),
+        (["evaluate", "robot_grid", "--set", "size=3", "--policies", "/no/such.csv"], "policies file /no/such.csv does not exist"),
+    ],
+)
+def test_user_errors_are_one_line_with_status_2(args, message):
+    assert_user_error(invoke(*args), message)
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("0,0,0\n0,x,0\n0,0,0\n", "line 2: '0,x,0' is not a list of integer weights"),
+        ("0,0,0\n0,0\n0,0,0\n", "rows have different lengths"),
+        ("", "is empty"),
+        ("0,0,0\n10,10,10\n0,0,0\n", "has no obstacle-free path from the start (0, 0) to the target (2, 2)"),
+        ("0,0,10\n0,0,0\n0,0,0\n", "the target cell (2,2) is an obstacle"),
+    ],
+)
+def test_malformed_maps(tmp_path, content, message):
+    path = tmp_path / "map.csv"
+    path.write_text(content)
+    assert_user_error(invoke("baseline", "robot_grid", "--set", f"map={path}"), message)
+
+
+def test_malformed_policies_file(tmp_path):
+    path = tmp_path / "p.csv"
+    path.write_text("policy,xhat,yhat,c\nmine,0,0,3\n")
+    result = invoke("evaluate", "robot_grid", "--set", "size=3", "--set", "seed=2", "--policies", str(path))
+    assert_user_error(result, "policy 'mine' lacks xhat=0, yhat=1 and 7 more valuations; give one row per valuation")
