@@ -79,7 +79,7 @@ def summary(result: RunResult) -> dict[str, Any]:
             "interrupted": search.interrupted,
         },
         "evaluator": result.evaluator,
-        "storm_solver": "Eigen sparse LU (direct) for DTMC equation systems",
+        "storm_solver": "native, sound value iteration, relative precision 1e-12",
         "workers": result.workers,
         "model": {
             "observation": list(family.system.observation),
