@@ -126,4 +126,7 @@ def test_localising_after_every_move_on_a_map_without_obstacles_always_succeeds(
     with StormEvaluator(family, workers=1) as storm:
         success = storm.evaluate([[1] * len(family.decisions), [10] * len(family.decisions)])[:, 0]
     assert success[0] == pytest.approx(1.0, abs=1e-9)
-    assert success[1] == pytest.approx(1.0, abs=1e-9)  # eventually, even when rarely localising
+    # Rarely localising, the robot may believe it has arrived while it has drifted elsewhere:
+    # it then stops for good (no move at the target, no localisation without a move), as in
+    # the paper's model. Eight moves, each exact with probability 0.7: about 0.7^8 succeed.
+    assert 0.7**8 <= success[1] < 0.1
