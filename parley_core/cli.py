@@ -84,10 +84,10 @@ class RichReporter:
         self.progress.stop()
 
     def _finish(self) -> None:
-        if self.task is not None:
-            task = self.progress.tasks[-1]
-            total = task.total if task.total is not None else max(task.completed, 1)
-            self.progress.update(self.task, total=total, completed=total)
+        # a stage without a known size is done when the next starts; a sized one shows
+        # how far it got (less than its total if interrupted)
+        if self.task is not None and self.progress.tasks[-1].total is None:
+            self.progress.update(self.task, total=1, completed=1)
 
     def stage(self, name: str, total: int | None = None) -> None:
         self._finish()

@@ -24,18 +24,13 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from parley_core.casestudy import PolicyTable
-from parley_core.errors import PolicyError
+from parley_core.errors import PolicyError, read_text
 from parley_core.model import Family, Policy
 
 
 def read_policies(path: Path, family: Family) -> list[Policy]:
     """The policies in a long- or wide-form CSV file, checked against the family."""
-    if not path.is_file():
-        raise PolicyError(f"policies file {path} does not exist; give a CSV file (see `parley evaluate --help`)")
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise PolicyError(f"policies file {path} cannot be read ({exc})") from None
+    text = read_text(path, "policies file", "give a CSV text file (see `parley evaluate --help`)", PolicyError)
     rows = [row for row in csv.reader(io.StringIO(text)) if any(cell.strip() for cell in row)]
     if not rows:
         raise PolicyError(f"policies file {path} is empty; give a header line and one line per policy or valuation")

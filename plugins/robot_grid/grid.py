@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from attrs import field, frozen
 
-from parley_core.errors import OptionError
+from parley_core.errors import OptionError, read_text
 
 OBSTACLE = 10
 """Cells weighing this much or more are obstacles."""
@@ -76,12 +76,7 @@ def from_rows(rows: list[list[int]], source: str) -> Grid:
 
 def load_csv(path: Path) -> Grid:
     """Read and check a CSV map; every problem is an OptionError saying what to fix."""
-    if not path.is_file():
-        raise OptionError(f"map file {path} does not exist; give the path of a CSV map (map=FILE)")
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise OptionError(f"map file {path} cannot be read ({exc}); give a readable CSV text file") from None
+    text = read_text(path, "map file", "give the path of a CSV map (map=FILE)", OptionError)
     rows: list[list[int]] = []
     for number, row in enumerate(csv.reader(io.StringIO(text)), start=1):
         cells = [cell.strip() for cell in row]
