@@ -38,6 +38,13 @@ SetOption = Annotated[
 WorkersOption = Annotated[
     int | None, typer.Option("--workers", "-j", min=1, help="Worker processes for Storm (default: one per core).")
 ]
+EvaluatorOption = Annotated[
+    str,
+    typer.Option(
+        "--evaluator",
+        help="quotient: one MDP for all policies, fast; storm: build and check each policy (the reference).",
+    ),
+]
 JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON document to stdout and nothing else there.")]
 
 
@@ -197,10 +204,11 @@ def run_command(
     case: Annotated[str, typer.Argument(help="Case study name (see `parley list`).")],
     set_: SetOption = None,
     seed: Annotated[int, typer.Option(help="Seed of the search; the same seed gives the same front.")] = 1,
-    population: Annotated[int, typer.Option(min=2, help="NSGA-II population size.")] = 50,
-    generations: Annotated[int, typer.Option(min=1, help="NSGA-II generations.")] = 20,
+    population: Annotated[int, typer.Option(min=2, help="NSGA-II population size.")] = 100,
+    generations: Annotated[int, typer.Option(min=1, help="NSGA-II generations.")] = 40,
     out: Annotated[Path | None, typer.Option(help="Run directory (default: runs/CASE-TIMESTAMP).")] = None,
     force: Annotated[bool, typer.Option(help="Replace the files of an existing --out directory.")] = False,
+    evaluator: EvaluatorOption = "quotient",
     workers: WorkersOption = None,
 ) -> None:
     """Synthesise a URC: search for Pareto-optimal policies, verify them with Storm, write a run directory."""
@@ -214,7 +222,7 @@ def run_command(
     settings = SearchSettings(population=population, generations=generations, seed=seed)
     with RichReporter(_stderr()) as reporter:
         prepared = _prepare(case, set_, reporter)
-        result = run(prepared, settings, workers=workers, reporter=reporter)
+        result = run(prepared, settings, evaluator=evaluator, workers=workers, reporter=reporter)
         reporter.stage("write report")
         write_run(result, out, force=force)
     info = summary(result)
@@ -238,6 +246,12 @@ def run_command(
         f"{result.search.evaluations} policies evaluated in {result.search.generations} generations "
         f"({result.timings.get('search', 0):.1f} s); selected {info['selected']['policy']} (knee)"
     )
+    verification = result.verification
+    if verification.by == "storm":
+        console.print(
+            f"every front policy re-checked by Storm: largest difference from the {result.evaluator} evaluator "
+            f"{verification.max_difference:.1e}"
+        )
     console.print(f"wrote {out}/")
     if result.search.interrupted:
         raise typer.Exit(130)
@@ -265,22 +279,28 @@ def evaluate_command(
         typer.Option(help="CSV: policy, observation variables, one column per service (or a run's policies.csv)."),
     ] = None,
     constant: Annotated[int | None, typer.Option(help="Evaluate the policy that uses this value everywhere.")] = None,
+    evaluator: EvaluatorOption = "quotient",
     json_: JsonOption = False,
     workers: WorkersOption = None,
 ) -> None:
-    """Evaluate policies with Storm and print their objective values."""
-    from parley_core.evaluate.storm import StormEvaluator
-    from parley_core.pipeline import evaluate
+    """Evaluate policies and print their objective values."""
+    from parley_core.pipeline import evaluate, make_evaluator
 
     with RichReporter(_stderr()) as reporter:
         prepared = _prepare(case, set_, reporter)
         chosen = _read_or_constant(prepared.family, policies, constant)
-        with StormEvaluator(prepared.family, workers=workers) as storm:
-            front = evaluate(prepared.family, chosen, storm, reporter, stage="evaluate (Storm)")
+        reporter.stage(f"{evaluator} evaluator")
+        engine = make_evaluator(prepared.family, evaluator, workers)
+        try:
+            front = evaluate(prepared.family, chosen, engine, reporter, stage=f"evaluate ({evaluator})")
+        finally:
+            engine.close()
     if json_:
-        print(json.dumps(_values_json(prepared.case, prepared.options, front), indent=2))
+        document = _values_json(prepared.case, prepared.options, front)
+        document["evaluator"] = evaluator
+        print(json.dumps(document, indent=2))
     else:
-        Console().print(_front_table("Storm's values", front, limit=10_000))
+        Console().print(_front_table(f"values ({evaluator} evaluator)", front, limit=10_000))
 
 
 @app.command("baseline")

@@ -24,7 +24,7 @@ from parley_core.evaluate.storm import StormEvaluator
 from parley_core.model import Family, Front, Policy, SystemModel
 from parley_core.search import Archive, SearchResult, SearchSettings, search
 
-EVALUATORS = ("storm",)
+EVALUATORS = ("quotient", "storm")
 
 
 class Reporter(Protocol):
@@ -80,7 +80,12 @@ def prepare(case: CaseStudy, options: Any, reporter: Reporter | None = None) -> 
     return Prepared(case=case, options=options, system=system, family=family, timings=timings)
 
 
-def make_evaluator(family: Family, kind: str = "storm", workers: int | None = None) -> Evaluator:
+def make_evaluator(family: Family, kind: str = "quotient", workers: int | None = None) -> Evaluator:
+    """The evaluator called ``kind``: "quotient" (fast, the default) or "storm" (the reference)."""
+    if kind == "quotient":
+        from parley_core.evaluate.quotient import QuotientEvaluator
+
+        return QuotientEvaluator(family, workers=workers)
     if kind == "storm":
         return StormEvaluator(family, workers=workers)
     raise OptionError(f"unknown evaluator {kind!r}; valid: {', '.join(EVALUATORS)}")
@@ -124,6 +129,7 @@ class RunResult:
     reference: tuple[float, ...]
     selected: int
     timings: dict[str, float]
+    evaluator_info: dict[str, Any] = field(factory=dict)
 
     @property
     def family(self) -> Family:
@@ -148,7 +154,7 @@ def run(
     prepared: Prepared,
     settings: SearchSettings,
     *,
-    evaluator: str = "storm",
+    evaluator: str = "quotient",
     workers: int | None = None,
     reporter: Reporter | None = None,
 ) -> RunResult:
@@ -157,7 +163,9 @@ def run(
     family = prepared.family
     timings = dict(prepared.timings)
     directions = [o.direction for o in family.objectives]
-    engine = make_evaluator(family, evaluator, workers)
+    reporter.stage(f"{evaluator} evaluator")
+    with _timed(timings, "evaluator"):
+        engine = make_evaluator(family, evaluator, workers)
     try:
         archive = Archive(engine, len(family.decisions), len(family.objectives))
         with _timed(timings, "baselines"):
@@ -194,6 +202,7 @@ def run(
         settings=settings,
         evaluator=evaluator,
         workers=getattr(engine, "workers", 1),
+        evaluator_info=_describe(engine),
         baseline=baseline,
         front=front,
         search=result,
@@ -213,3 +222,15 @@ def _verify(family, policies, values, evaluator, workers, reporter) -> tuple[Ver
         checked = storm.evaluate(policies, progress=reporter.advance)
     difference = float(np.abs(checked - values).max()) if len(values) else 0.0
     return Verification(by="storm", policies=len(policies), max_difference=difference, seconds=time.perf_counter() - start), checked
+
+
+def _describe(engine: Evaluator) -> dict[str, Any]:
+    quotient = getattr(engine, "quotient", None)
+    if quotient is None:
+        return {}
+    return {
+        "quotient_states": quotient.states,
+        "quotient_choices": quotient.choices,
+        "quotient_transitions": quotient.branches,
+        "objectives_checked_by_storm": list(getattr(engine, "fallback", ())),
+    }

@@ -79,6 +79,7 @@ def summary(result: RunResult) -> dict[str, Any]:
             "interrupted": search.interrupted,
         },
         "evaluator": result.evaluator,
+        "evaluator_details": result.evaluator_info,
         "storm_solver": "native, sound value iteration, relative precision 1e-12",
         "workers": result.workers,
         "model": {

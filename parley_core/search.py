@@ -28,8 +28,8 @@ from parley_core.model import Family
 class SearchSettings:
     """Budget and seed of a search. ``max_evaluations`` (new policies) stops it early if set."""
 
-    population: int = field(default=50, validator=validators.ge(2))
-    generations: int = field(default=20, validator=validators.ge(1))
+    population: int = field(default=100, validator=validators.ge(2))
+    generations: int = field(default=40, validator=validators.ge(1))
     seed: int = 1
     max_evaluations: int | None = None
 

@@ -95,7 +95,24 @@ def test_run_writes_the_run_directory_and_is_reproducible(tmp_path):
     summary = json.loads((first / "summary.json").read_text())
     assert summary["seed"] == 7 and summary["search"]["population"] == 8
     assert summary["front"]["hypervolume"] >= summary["baseline"]["hypervolume"]
+    # the quotient evaluator searched; Storm re-checked every front policy
+    assert summary["evaluator"] == "quotient"
+    assert summary["verification"]["by"] == "storm"
+    assert summary["verification"]["policies"] == len((first / "front.csv").read_text().splitlines()) - 1
+    assert summary["verification"]["max_difference"] <= 1e-6
     assert "Pareto front" in result.stdout and "hypervolume" in result.stdout
+
+
+def test_run_and_evaluate_with_the_storm_evaluator(tmp_path):
+    result = invoke("run", "robot_grid", *QUICK, "--population", "6", "--generations", "2", "--evaluator", "storm", "--out", str(tmp_path / "r"))
+    assert result.exit_code == 0, result.stderr
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert summary["evaluator"] == "storm" and summary["verification"]["max_difference"] == 0.0
+    storm = json.loads(invoke("evaluate", "robot_grid", *QUICK, "--constant", "3", "--evaluator", "storm", "--json").stdout)
+    quotient = json.loads(invoke("evaluate", "robot_grid", *QUICK, "--constant", "3", "--json").stdout)
+    assert quotient["evaluator"] == "quotient"
+    assert quotient["policies"][0]["values"] == pytest.approx(storm["policies"][0]["values"], abs=1e-9)
+    assert_user_error(invoke("evaluate", "robot_grid", *QUICK, "--constant", "3", "--evaluator", "fast"), "unknown evaluator 'fast'; valid: quotient, storm")
 
 
 def test_run_refuses_a_non_empty_output_directory(tmp_path):

@@ -155,13 +155,20 @@ def splice(
     modules: Mapping[str, str] = {},
     constants: Mapping[str, str] = {},
     header: str = "",
+    model_type: str | None = None,
 ) -> str:
     """Storm's printing of ``program`` with whole modules and constant declarations replaced.
 
     ``modules`` maps a module name to its new text, ``constants`` maps a constant name to the
-    lines replacing its declaration (an empty string drops it).
+    lines replacing its declaration (an empty string drops it); ``model_type`` (e.g. "mdp")
+    replaces the model type keyword Storm prints first.
     """
     text = str(program)
+    if model_type is not None:
+        keyword, newline, rest = text.partition("\n")
+        if keyword != program.model_type.name.lower():
+            raise RuntimeError(f"Storm's printing starts with {keyword!r}, not the model type")
+        text = model_type + newline + rest
     for module in program.modules:
         if module.name in modules:
             old = str(module)

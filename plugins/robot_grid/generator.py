@@ -36,6 +36,8 @@ from parley_core.prism.writer import (
 from parley_plugins.robot_grid.grid import Grid
 from parley_plugins.robot_grid.planner import MOVES
 
+MOVES_ORDER = {move: i for i, move in enumerate(MOVES)}
+
 # For each intended move, the outcome of each actual direction, in the package's order.
 _OUTCOMES = {
     "east": ("x", "min(x+1, W)"),
@@ -62,7 +64,9 @@ def prism_model(
 ) -> str:
     """The DTMC text for ``grid`` with the movement controller ``moves``."""
     x_target, y_target = grid.target
-    crash = disjunction(f"x={x} & y={y}" for x, y in grid.obstacles())
+    crash = disjunction(
+        f"x={x} & {_one_of('y', ys)}" for x, ys in _by_column(grid.obstacles()).items()
+    )
 
     robot_commands = [
         Command(
@@ -88,15 +92,16 @@ def prism_model(
         ],
         commands=robot_commands,
     )
-    # Every move must be in the Controller's alphabet, or PRISM would let an unused one
-    # happen anywhere: a move no cell plans gets a command that is never enabled.
+    # One command per move and column (a guard that fails fast on xhat: Storm evaluates every
+    # guard in every state). Every move must be in the Controller's alphabet, or PRISM would
+    # let an unused one happen anywhere: a move no cell plans gets a command never enabled.
+    columns = _by_column(sorted(moves, key=lambda cell: (MOVES_ORDER[moves[cell]], cell)), key=lambda cell: (moves[cell], cell[0]))
     controller = Module(
         name="Controller",
         commands=[
             *(
-                Command(action=moves[cell], guard=f"xhat={cell[0]} & yhat={cell[1]} & crashed=0")
-                for cell in grid.cells()
-                if cell in moves
+                Command(action=move, guard=f"xhat={x} & {_one_of('yhat', ys)} & crashed=0")
+                for (move, x), ys in columns.items()
             ),
             *(Command(action=move, guard="false") for move in MOVES if move not in moves.values()),
         ],
@@ -158,3 +163,15 @@ def prism_model(
     )
     return program.render()
 
+
+
+def _by_column(cells, key=lambda cell: cell[0]) -> dict:
+    """y values of ``cells`` grouped by ``key`` (default: the column x), in order."""
+    groups: dict = {}
+    for cell in cells:
+        groups.setdefault(key(cell), []).append(cell[1])
+    return groups
+
+
+def _one_of(variable: str, values: list[int]) -> str:
+    return f"{variable}={values[0]}" if len(values) == 1 else "(" + " | ".join(f"{variable}={v}" for v in values) + ")"

@@ -1,0 +1,195 @@
+"""Compiled kernels of the quotient evaluator (numba).
+
+A policy's DTMC is never built as a Python object: :func:`explore` walks the quotient MDP
+from the initial state, keeps the choices consistent with the policy, mixes them uniformly
+(as Storm's DTMC builder mixes overlapping commands), turns states without a consistent
+choice into self-loops, and writes the reachable part as a CSR matrix over local indices
+(0 is the initial state, then breadth-first order). The other kernels solve on that matrix.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _consistent(policy, choice_dec, choice_val, c):
+    for j in range(choice_dec.shape[1]):
+        d = choice_dec[c, j]
+        if d < 0:
+            return True
+        if policy[d] != choice_val[c, j]:
+            return False
+    return True
+
+
+@njit(cache=True)
+def explore(
+    policy, initial, state_choices, choice_branches, targets, probabilities, choice_dec, choice_val,
+    state_rewards, choice_rewards, local_of, order, indptr, cols, vals, rewards_out, levels,
+):
+    """The reachable DTMC of ``policy``; returns (states, entries).
+
+    ``local_of`` must hold -1 everywhere on entry and does again on return. ``rewards_out``
+    [r, :states] receives each reward structure's state reward plus the mean action reward
+    of the consistent choices (nothing in a state without one: Storm drops a deadlock state's
+    rewards); ``levels`` each state's distance (in steps) from the initial one.
+    """
+    n_rewards = state_rewards.shape[0]
+    order[0] = initial
+    local_of[initial] = 0
+    levels[0] = 0
+    count = 1
+    head = 0
+    nnz = 0
+    indptr[0] = 0
+    while head < count:
+        s = order[head]
+        k = 0
+        for c in range(state_choices[s], state_choices[s + 1]):
+            if _consistent(policy, choice_dec, choice_val, c):
+                k += 1
+        for r in range(n_rewards):
+            # Storm gives a deadlock state (made a self-loop) no reward, state rewards included
+            rewards_out[r, head] = state_rewards[r, s] if k > 0 else 0.0
+        if k == 0:
+            cols[nnz] = head
+            vals[nnz] = 1.0
+            nnz += 1
+        else:
+            w = 1.0 / k
+            for c in range(state_choices[s], state_choices[s + 1]):
+                if not _consistent(policy, choice_dec, choice_val, c):
+                    continue
+                for r in range(n_rewards):
+                    rewards_out[r, head] += w * choice_rewards[r, c]
+                for b in range(choice_branches[c], choice_branches[c + 1]):
+                    t = targets[b]
+                    if local_of[t] < 0:
+                        local_of[t] = count
+                        order[count] = t
+                        levels[count] = levels[head] + 1
+                        count += 1
+                    cols[nnz] = local_of[t]
+                    vals[nnz] = w * probabilities[b]
+                    nnz += 1
+        head += 1
+        indptr[head] = nnz
+    for i in range(count):
+        local_of[order[i]] = -1
+    return count, nnz
+
+
+@njit(cache=True)
+def backward_reach(count, indptr, cols, start, through):
+    """States (local) that can reach a ``start`` state by a path whose other states are ``through``."""
+    nnz = indptr[count]
+    rev_ptr = np.zeros(count + 1, dtype=np.int64)
+    for e in range(nnz):
+        rev_ptr[cols[e] + 1] += 1
+    for i in range(count):
+        rev_ptr[i + 1] += rev_ptr[i]
+    fill = rev_ptr[:-1].copy()
+    rev = np.empty(nnz, dtype=np.int64)
+    for s in range(count):
+        for e in range(indptr[s], indptr[s + 1]):
+            rev[fill[cols[e]]] = s
+            fill[cols[e]] += 1
+    seen = start.copy()
+    stack = np.empty(count, dtype=np.int64)
+    top = 0
+    for s in range(count):
+        if start[s]:
+            stack[top] = s
+            top += 1
+    while top > 0:
+        top -= 1
+        t = stack[top]
+        for e in range(rev_ptr[t], rev_ptr[t + 1]):
+            s = rev[e]
+            if not seen[s] and through[s]:
+                seen[s] = True
+                stack[top] = s
+                top += 1
+    return seen
+
+
+@njit(cache=True, fastmath=True)
+def gauss_seidel(count, indptr, cols, vals, free, x, constant, tolerance, max_sweeps):
+    """Solve x = constant + P x on the ``free`` states, the others fixed at their x.
+
+    Sweeps run from the last-discovered state back to the initial one; a state's self-loop
+    is solved for directly. Stops when no value moves by more than ``tolerance`` relative
+    to its size (absolutely, below 1); returns the sweeps used, or -1 without convergence.
+    """
+    for sweep in range(max_sweeps):
+        change = 0.0
+        for s in range(count - 1, -1, -1):
+            if not free[s]:
+                continue
+            total = constant[s]
+            loop = 0.0
+            for e in range(indptr[s], indptr[s + 1]):
+                t = cols[e]
+                if t == s:
+                    loop += vals[e]
+                else:
+                    total += vals[e] * x[t]
+            if loop >= 1.0:
+                continue
+            value = total / (1.0 - loop)
+            delta = abs(value - x[s])
+            scale = abs(value)
+            if scale > 1.0:
+                delta /= scale
+            if delta > change:
+                change = delta
+            x[s] = value
+        if change <= tolerance:
+            return sweep + 1
+    return -1
+
+
+@njit(cache=True, fastmath=True)
+def bounded(count, indptr, cols, vals, steps, x, constant, free, levels):
+    """``steps`` Jacobi iterations of x = constant + P x on ``free`` states: exact for
+    step-bounded properties. Only the value at the initial state is wanted, so iteration j
+    updates only states within ``steps - j`` steps of it (a prefix of the breadth-first
+    order ``levels`` comes from)."""
+    y = x.copy()
+    limit = count
+    for j in range(1, steps + 1):
+        horizon = steps - j
+        while limit > 0 and levels[limit - 1] > horizon:
+            limit -= 1
+        for s in range(limit):
+            if not free[s]:
+                y[s] = x[s]
+                continue
+            total = constant[s]
+            for e in range(indptr[s], indptr[s + 1]):
+                total += vals[e] * x[cols[e]]
+            y[s] = total
+        x, y = y, x
+    return x
+
+
+@njit(cache=True, fastmath=True)
+def cumulative(count, indptr, cols, vals, steps, reward, levels):
+    """Expected reward within ``steps`` steps from the initial state: ``steps`` iterations of
+    x = reward + P x, each on the states that can still matter (see :func:`bounded`)."""
+    x = np.zeros(count)
+    y = np.zeros(count)
+    limit = count
+    for j in range(1, steps + 1):
+        horizon = steps - j
+        while limit > 0 and levels[limit - 1] > horizon:
+            limit -= 1
+        for s in range(limit):
+            total = reward[s]
+            for e in range(indptr[s], indptr[s + 1]):
+                total += vals[e] * x[cols[e]]
+            y[s] = total
+        x, y = y, x
+    return x[0]

@@ -1,0 +1,115 @@
+"""The quotient evaluator agrees with Storm: every property kind it supports, the fallback
+for those it does not, the robot on random maps and policies (also property-based)."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from conftest import TOY, toy_system
+from parley_core.augment import augment
+from parley_core.evaluate.quotient import QuotientEvaluator
+from parley_core.evaluate.storm import StormEvaluator
+from parley_core.model import Objective
+from parley_core.plugins import load_registry
+
+ROBOT = load_registry().get("robot_grid")
+
+# The toy (tests/conftest.py) with an absorbing "broken" state reached from a degraded
+# server, so that rewards until it are finite and total rewards can be infinite, and an
+# overlap of two enabled commands (probe and inspect) that Storm mixes uniformly.
+BREAKING = TOY.replace(
+    "  [wait] step<c & h=0 -> (phase'=1-phase) & (step'=step+1);",
+    "  [wait] step<c & h=0 -> 0.7 : (phase'=1-phase) & (step'=step+1) + 0.3 : (h'=0) & (broken'=true);\n"
+    "  [inspect] step>=c & phase=1 & !broken -> (step'=1);",
+).replace("  step : [1..K] init 1;", "  step : [1..K] init 1;\n  broken : bool init false;").replace(
+    "  [probe] step>=c ->", "  [probe] step>=c & !broken ->"
+).replace("  [wait] step<c & h=1 ->", "  [wait] step<c & h=1 & !broken ->")
+
+OBJECTIVES = {
+    "reach": 'P=? [F broken]',
+    "until": 'P=? [h=1 U broken]',
+    "bounded": 'P=? [F<=6 broken]',
+    "bounded_until": 'P=? [phase=0 | h=1 U<=5 broken]',
+    "reward_reach": 'R{"cost"}=? [F broken]',
+    "reward_reach_infinite": 'R{"cost"}=? [F h=2]',
+    "cumulative": 'R{"cost"}=? [C<=17]',
+    "total": 'R{"cost"}=? [C]',
+    "total_finite": 'R{"once"}=? [C]',
+}
+
+
+def breaking_system(objectives: dict[str, str]):
+    text = BREAKING.replace("endrewards", "endrewards\nrewards \"once\"\n  [probe] step=3 : 2;\n  phase=1 & !broken & h=0 : 0;\nendrewards", 1)
+    return toy_system(
+        prism=text,
+        objectives=[Objective(name=name, formula=formula, direction="min") for name, formula in objectives.items()],
+    )
+
+
+def all_policies(family):
+    return np.array(list(itertools.product(*(range(d.service.low, d.service.high + 1) for d in family.decisions))))
+
+
+def test_every_supported_kind_agrees_with_storm_on_every_policy():
+    family = augment(breaking_system(OBJECTIVES))
+    policies = all_policies(family)
+    with QuotientEvaluator(family, workers=1) as quotient, StormEvaluator(family, workers=1) as storm:
+        assert quotient.fallback == ()
+        fast, reference = quotient.evaluate(policies), storm.evaluate(policies)
+    finite = np.isfinite(reference)
+    assert (np.isfinite(fast) == finite).all()
+    # both solvers stop at a relative precision of 1e-12
+    assert np.allclose(fast[finite], reference[finite], rtol=1e-9, atol=1e-9)
+    names = list(OBJECTIVES)
+    assert np.isinf(reference[:, names.index("reward_reach_infinite")]).all()
+    assert np.isinf(reference[:, names.index("total")]).any(), "the total-reward case should meet infinity"
+    assert np.isfinite(reference[:, names.index("total_finite")]).all()
+
+
+def test_unsupported_properties_fall_back_to_storm():
+    objectives = {"globally": "P=? [G h=1]", "instant": 'R{"cost"}=? [I=5]', "reach": "P=? [F broken]"}
+    family = augment(breaking_system(objectives))
+    policies = all_policies(family)
+    with QuotientEvaluator(family, workers=1) as quotient, StormEvaluator(family, workers=1) as storm:
+        assert quotient.fallback == ("globally", "instant")
+        assert np.abs(quotient.evaluate(policies) - storm.evaluate(policies)).max() <= 1e-9
+
+
+@pytest.mark.parametrize(("size", "seed", "p"), [(6, 1, 0.02), (8, 4, 0.05), (10, 0, 0.01)])
+def test_robot_random_policies_and_baselines_agree_with_storm(size, seed, p):
+    family = augment(ROBOT.build(ROBOT.options([f"size={size}", f"seed={seed}", f"p={p}"])))
+    rng = np.random.default_rng(seed)
+    policies = np.vstack([[b.values for b in family.baseline_policies()], rng.integers(1, 11, size=(12, len(family.decisions)))])
+    with QuotientEvaluator(family, workers=1) as quotient, StormEvaluator(family, workers=1) as storm:
+        assert np.abs(quotient.evaluate(policies) - storm.evaluate(policies)).max() <= 1e-9
+
+
+def test_worker_processes_give_bit_identical_values():
+    family = augment(ROBOT.build(ROBOT.options(["size=5", "seed=2"])))
+    policies = np.random.default_rng(0).integers(1, 11, size=(70, len(family.decisions)))
+    with QuotientEvaluator(family, workers=1) as one, QuotientEvaluator(family, workers=2) as two:
+        assert np.array_equal(one.evaluate(policies), two.evaluate(policies))
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    size=st.integers(3, 5),
+    seed=st.integers(0, 10_000),
+    p=st.sampled_from([0.0, 0.01, 0.05, 0.1]),
+    horizon=st.integers(1, 60),
+    max_interval=st.integers(1, 4),
+    data=st.data(),
+)
+def test_property_quotient_equals_storm_on_random_maps_and_policies(size, seed, p, horizon, max_interval, data):
+    options = ROBOT.options([f"size={size}", f"seed={seed}", f"p={p}", f"horizon={horizon}", f"max_interval={max_interval}"])
+    family = augment(ROBOT.build(options))
+    n = len(family.decisions)
+    policy = data.draw(st.lists(st.integers(1, max_interval), min_size=n, max_size=n))
+    with QuotientEvaluator(family, workers=1) as quotient, StormEvaluator(family, workers=1) as storm:
+        difference = np.abs(quotient.evaluate([policy]) - storm.evaluate([policy])).max()
+    assert difference <= 1e-6
