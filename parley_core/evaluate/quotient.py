@@ -249,7 +249,9 @@ def _read_umb(model) -> dict[str, np.ndarray]:
                     arrays[name] = np.frombuffer(data, dtype=np.uint64)
                 elif name == "actions/choices/values.bin":
                     arrays[name] = np.frombuffer(data, dtype=np.uint32)
-                elif name.endswith("/values.bin") and name.startswith("annotations/rewards/") or name == "branch-to-probability.bin":
+                elif name == "branch-to-probability.bin" or (
+                    name.startswith("annotations/rewards/") and name.endswith("/values.bin")
+                ):
                     arrays[name] = np.frombuffer(data, dtype=np.float64)
         return arrays
     finally:
