@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import pkgutil
 from collections.abc import Iterable, Mapping
 
 import pluggy
@@ -12,15 +13,21 @@ from parley_core import hookspecs
 from parley_core.casestudy import CaseStudy
 from parley_core.errors import PluginError, UnknownCaseStudyError
 
-BUILTIN_PLUGINS = ("parley_plugins.robot_grid",)
-"""Modules registered by every plugin manager, like pytest's default plugins."""
+BUILTIN_PACKAGE = "parley_plugins"
+"""The package of the built-in case studies: each sub-package defining a hook is a plugin."""
 
 
-def plugin_manager(builtins: Iterable[str] = BUILTIN_PLUGINS, entry_points: bool = True) -> pluggy.PluginManager:
+def builtin_plugins() -> list[str]:
+    """The built-in plugin modules: the sub-packages of ``parley_plugins`` (plugins/), sorted."""
+    package = importlib.import_module(BUILTIN_PACKAGE)
+    return sorted(f"{BUILTIN_PACKAGE}.{info.name}" for info in pkgutil.iter_modules(package.__path__) if info.ispkg)
+
+
+def plugin_manager(builtins: Iterable[str] | None = None, entry_points: bool = True) -> pluggy.PluginManager:
     """A fresh plugin manager with the built-in plugins and, unless disabled, installed ones."""
     pm = pluggy.PluginManager(hookspecs.PROJECT)
     pm.add_hookspecs(hookspecs)
-    for module_name in builtins:
+    for module_name in builtin_plugins() if builtins is None else builtins:
         pm.register(importlib.import_module(module_name), name=module_name)
     if entry_points:
         try:
