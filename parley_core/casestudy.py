@@ -30,6 +30,8 @@ class CaseStudy:
     - ``plot_policy(system, table, path)`` optionally draws one policy (PNG) for the run report.
     - ``quick`` are option values for a small instance that builds and searches in seconds; the
       conformance suite runs every case study with them.
+    - ``requirement_settings`` are campaign reports' default settings: one worst acceptable
+      value per objective each (robot_grid: the paper's nine, e.g. success >= 0.7, cost <= 80).
     """
 
     name: str = field(validator=validators.matches_re(r"[a-z][a-z0-9_]*"))
@@ -38,6 +40,9 @@ class CaseStudy:
     build: Callable[[Any], SystemModel] = field()
     plot_policy: Callable[[SystemModel, PolicyTable, Path], None] | None = None
     quick: Mapping[str, str] = field(factory=dict, converter=dict)
+    requirement_settings: tuple[tuple[float, ...], ...] = field(
+        default=(), converter=lambda rows: tuple(tuple(float(v) for v in row) for row in rows)
+    )
 
     @options_type.validator
     def _check_options_type(self, _attribute: attrs.Attribute, value: type) -> None:

@@ -331,3 +331,176 @@ def baseline_command(
 def main() -> None:
     app()
 
+
+
+experiment_app = typer.Typer(
+    no_args_is_help=True,
+    rich_markup_mode=None,
+    help="Campaigns: many instances x repetitions, a resumable store, reports (Tables 2 and 3, Fig. 4).",
+)
+app.add_typer(experiment_app, name="experiment")
+
+
+@experiment_app.command("run")
+@_user_errors
+def experiment_run(
+    case: Annotated[str, typer.Argument(help="Case study name (see `parley list`).")],
+    store: Annotated[Path, typer.Option(help="SQLite results file (created if missing; resumed if present).")],
+    reps: Annotated[int, typer.Option(min=1, help="Repetitions per instance (seeds first-seed, first-seed+1, ...).")] = 10,
+    grid: Annotated[
+        list[str] | None, typer.Option("--grid", metavar="KEY=V1,V2,...", help="Instances: the product of these option values.")
+    ] = None,
+    instances: Annotated[
+        str | None, typer.Option(help="Instances: one per file of a directory or glob (e.g. 'maps/map_*.csv').")
+    ] = None,
+    instance_option: Annotated[
+        str | None, typer.Option(help="The option that receives each --instances file (default: the first file option).")
+    ] = None,
+    set_: SetOption = None,
+    name: Annotated[str | None, typer.Option(help="Campaign name inside the store (default: the case study's name).")] = None,
+    population: Annotated[int, typer.Option(min=2)] = 100,
+    generations: Annotated[int, typer.Option(min=1)] = 40,
+    first_seed: Annotated[int, typer.Option(help="Seed of the first repetition.")] = 1,
+    evaluator: EvaluatorOption = "quotient",
+    verify: Annotated[
+        bool, typer.Option(help="Re-check every front policy with Storm (--no-verify keeps the search's values, and says so).")
+    ] = True,
+    workers: Annotated[int | None, typer.Option("--workers", "-j", min=1, help="Runs at once on this machine (default: one per core).")] = None,
+    scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address (e.g. tcp://host:8786) to run on a cluster.")] = None,
+) -> None:
+    """Run a campaign; rerunning the same command resumes it, skipping finished runs."""
+    from parley_core.experiment.campaign import Budget, describe, execute, instances_from, plan
+    from parley_core.experiment.store import Store
+
+    study = _case(case)
+    budget = Budget(population=population, generations=generations, evaluator=evaluator, verify=verify)
+    chosen = instances_from(study, grid or [], instances, instance_option)
+    campaign = name or study.name
+    specs = plan(campaign, study, chosen, set_ or [], reps, budget, first_seed)
+    console = Console(stderr=True)
+    with Store(store) as results:
+        results.begin_campaign(campaign, study.name, {**describe(budget, set_ or []), "first_seed": first_seed})
+        already = len(results.done(campaign) & {(s.instance, s.repetition) for s in specs})
+        progress = Progress(
+            SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+            console=console,
+        )
+        with progress:
+            task = progress.add_task(f"campaign {campaign}", total=len(specs), completed=already)
+            outcome = execute(specs, results, workers=workers, scheduler=scheduler, on_done=lambda _spec: progress.advance(task))
+    Console().print(
+        f"campaign {campaign}: {outcome.planned} runs planned, {outcome.skipped} already stored, "
+        f"{outcome.stored} stored now, {len(outcome.failures)} failed; results in {store}"
+    )
+    for instance, repetition, message in outcome.failures[:10]:
+        print(f"failed: {instance} repetition {repetition}: {message}", file=sys.stderr)
+    if outcome.failures:
+        raise typer.Exit(1)
+
+
+@experiment_app.command("report")
+@_user_errors
+def experiment_report(
+    store: Annotated[Path, typer.Option(help="SQLite results file of `parley experiment run`.")],
+    out: Annotated[Path, typer.Option(help="Directory for the tables and figures.")],
+    name: Annotated[str | None, typer.Option(help="Campaign name (default: the store's only campaign).")] = None,
+    setting: Annotated[
+        list[str] | None,
+        typer.Option("--setting", metavar="B1,B2", help="Requirement setting: worst acceptable value per objective (repeatable)."),
+    ] = None,
+    published: Annotated[
+        Path | None, typer.Option(help="Directory of published fronts ({instance}_rep{R}.front.tsv) to compare with.")
+    ] = None,
+    figure_setting: Annotated[str | None, typer.Option(metavar="B1,B2", help="Setting of the box plots (default: the paper's 0.7,80 if present, else the first).")] = None,
+    force: Annotated[bool, typer.Option(help="Replace the files of an existing --out directory.")] = False,
+) -> None:
+    """Report a campaign: Table 2 (per setting: better/worse/same than the baseline), box plots, CSV."""
+    from parley_core.experiment import report as campaign_report
+    from parley_core.experiment.store import Store
+    from parley_core.report import check_output
+
+    if not store.is_file():
+        raise OptionError(f"store {store} does not exist; give the file of `parley experiment run --store`")
+    if published is not None and not published.is_dir():
+        raise OptionError(f"--published {published} is not a directory")
+    check_output(out, force)
+    with Store(store) as results:
+        campaigns = results.campaigns()
+        if not campaigns:
+            raise OptionError(f"store {store} holds no campaign")
+        names = [c[0] for c in campaigns]
+        chosen = name or (names[0] if len(names) == 1 else None)
+        if chosen not in names:
+            raise OptionError(f"give --name: store {store} holds campaigns {', '.join(names)}")
+        case_name, settings_record = next((c[1], c[2]) for c in campaigns if c[0] == chosen)
+        records = list(results.runs(chosen))
+    if not records:
+        raise OptionError(f"campaign {chosen} in {store} has no finished run yet")
+    objectives = [o["name"] for o in records[0].objectives]
+    directions = [o["direction"] for o in records[0].objectives]
+    if setting:
+        settings = [campaign_report.parse_setting(s, len(objectives)) for s in setting]
+    else:
+        settings = list(_case(case_name).requirement_settings)
+        if not settings:
+            raise OptionError(f"{case_name} declares no requirement settings; give --setting (one bound per objective)")
+    figure = campaign_report.parse_setting(figure_setting, len(objectives)) if figure_setting else (
+        (0.7, 80.0) if (0.7, 80.0) in settings else settings[0]
+    )
+    rows = campaign_report.analyse(records, settings, published)
+    header = [f"{n} {'>=' if d == 'max' else '<='}" for n, d in zip(objectives, directions)]
+    table = campaign_report.table2_markdown(rows, settings, header, published is not None)
+    out.mkdir(parents=True, exist_ok=True)
+    instances = sorted({r.instance for r in records})
+    reps = sorted({r.repetition for r in records})
+    verified = {str(r.summary.get("verification", {}).get("by")) for r in records}
+    text = (
+        f"# Campaign {chosen} ({case_name})\n\n{len(instances)} instances x {len(reps)} repetitions "
+        f"({len(records)} runs); settings: {settings_record}.\nFront values: {', '.join(sorted(verified))}.\n\n"
+        "Per requirement setting (bounds), the number of instances where parley is significantly better / worse / "
+        "not different from the baseline (Mann-Whitney U at 0.05 on the repetitions' gains against zero; A12 per "
+        "instance in table2.csv). HV: hypervolume with the bounds as reference; SP: Deb's spread (lower is better).\n\n"
+        + table
+    )
+    (out / "table2.md").write_text(text)
+    (out / "table2.csv").write_text(campaign_report.rows_csv(rows, objectives))
+    caption = ", ".join(f"{h} {b:g}" for h, b in zip(header, figure))
+    figures = campaign_report.box_plots(rows, figure, caption, out / "gains")
+    Console().print(text)
+    Console().print(f"wrote {out}/table2.md, table2.csv and {len(figures)} figures")
+
+
+@experiment_app.command("scalability")
+@_user_errors
+def experiment_scalability(
+    case: Annotated[str, typer.Argument(help="Case study name (see `parley list`).")],
+    sizes: Annotated[str, typer.Option(help="Comma-separated values of the size option, e.g. 5,10,15,20,30,50.")] = "5,10,15,20,30,50",
+    option: Annotated[str, typer.Option(help="The option the sizes go to.")] = "size",
+    set_: SetOption = None,
+    storm_policies: Annotated[int, typer.Option(min=1, help="Policies timed with the Storm evaluator per size.")] = 10,
+    out: Annotated[Path | None, typer.Option(help="Directory for table3.md and table3.json.")] = None,
+) -> None:
+    """Table 3: model size, per-policy time of both evaluators, search time and search space per size."""
+    from parley_core.experiment.scalability import measure_isolated, table3_markdown
+
+    study = _case(case)
+    try:
+        values = [int(v) for v in sizes.split(",")]
+    except ValueError:
+        raise OptionError(f"malformed --sizes {sizes!r}; give integers such as 5,10,20") from None
+    for v in values:
+        study.options([*(set_ or []), f"{option}={v}"])
+    rows = []
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), console=_stderr()) as progress:
+        task = progress.add_task("scalability", total=len(values))
+        for v in values:
+            row = measure_isolated(study.name, [*(set_ or []), f"{option}={v}"], storm_policies=storm_policies if v <= 20 else max(2, storm_policies // 4))
+            row["instance"] = f"{option}={v}"
+            rows.append(row)
+            progress.advance(task)
+    table = table3_markdown(rows)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "table3.md").write_text(table)
+        (out / "table3.json").write_text(json.dumps(rows, indent=2))
+    Console().print(table)

@@ -157,8 +157,13 @@ def run(
     evaluator: str = "quotient",
     workers: int | None = None,
     reporter: Reporter | None = None,
+    verify: bool = True,
 ) -> RunResult:
-    """Baselines, search, verification; returns everything the report needs."""
+    """Baselines, search, verification; returns everything the report needs.
+
+    ``verify=False`` skips re-checking the front with Storm when another evaluator searched
+    (campaigns may choose it for time); the result then says so (``verification.by``).
+    """
     reporter = reporter or NullReporter()
     family = prepared.family
     timings = dict(prepared.timings)
@@ -185,7 +190,7 @@ def run(
     candidates = result.policies[mask]
     values = result.values[mask]
     with _timed(timings, "verify"):
-        verification, values = _verify(family, candidates, values, evaluator, workers, reporter)
+        verification, values = _verify(family, candidates, values, evaluator, workers, reporter, verify)
     # Storm's values decide the front: drop anything they show to be dominated.
     keep = metrics.nondominated(values, directions)
     candidates, values = candidates[keep], values[keep]
@@ -213,10 +218,12 @@ def run(
     )
 
 
-def _verify(family, policies, values, evaluator, workers, reporter) -> tuple[Verification, np.ndarray]:
+def _verify(family, policies, values, evaluator, workers, reporter, verify=True) -> tuple[Verification, np.ndarray]:
     start = time.perf_counter()
     if evaluator == "storm":
         return Verification(by="storm (the search's own evaluator)", policies=len(policies), max_difference=0.0, seconds=0.0), values
+    if not verify:
+        return Verification(by="none (values of the quotient evaluator)", policies=0, max_difference=float("nan"), seconds=0.0), values
     with StormEvaluator(family, workers=workers) as storm:
         reporter.stage("verify with Storm", len(policies))
         checked = storm.evaluate(policies, progress=reporter.advance)

@@ -1,0 +1,204 @@
+"""Campaign reports: the paper's Table 2 and Fig. 4, and the comparison with published fronts.
+
+For each requirement setting (one bound per objective: the worst acceptable value, e.g.
+success >= 0.7 and cost <= 80), each run's front and the instance's baseline are cut to the
+points that meet every bound, and measured against the bounds:
+
+- hypervolume with the bounds as reference point (:func:`parley_core.metrics.hypervolume`);
+- Deb's spread, normalised by the setting's box and with the extremes of all fronts of
+  that instance (every repetition and the baseline) as the reference extremes.
+
+Per instance and setting, the repetitions' gains over the baseline are tested against zero
+with a two-sided Mann-Whitney U at 0.05 (as the paper does, but pairing every repetition
+with its own instance's baseline) and their Vargha-Delaney A12 is reported. With published
+fronts, the repetitions' hypervolumes are compared with the published repetitions' the same
+way. See docs/metrics.md.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections import defaultdict
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from attrs import frozen  # noqa: E402
+
+from parley_core import metrics  # noqa: E402
+from parley_core.errors import OptionError  # noqa: E402
+from parley_core.experiment.campaign import records_values  # noqa: E402
+from parley_core.experiment.stats import compare  # noqa: E402
+from parley_core.experiment.store import RunRecord  # noqa: E402
+from parley_core.model import Direction  # noqa: E402
+
+Setting = tuple[float, ...]
+
+
+@frozen(kw_only=True)
+class Row:
+    instance: str
+    setting: Setting
+    baseline_hv: float
+    hv: tuple[float, ...]
+    hv_verdict: str
+    hv_p: float
+    hv_a12: float
+    baseline_spread: float
+    spread: tuple[float, ...]
+    spread_verdict: str
+    spread_p: float
+    spread_a12: float
+    published_hv: tuple[float, ...] = ()
+    published_verdict: str = ""
+    published_p: float = float("nan")
+    published_a12: float = float("nan")
+
+
+def parse_setting(text: str, n_objectives: int) -> Setting:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise OptionError(f"malformed --setting {text!r}; give one bound per objective, e.g. 0.7,80") from None
+    if len(values) != n_objectives:
+        raise OptionError(f"--setting {text!r} has {len(values)} bounds; give one per objective ({n_objectives})")
+    return values
+
+
+def in_box(values: np.ndarray, directions: Sequence[Direction], setting: Setting) -> np.ndarray:
+    signs = np.array([d.sign for d in directions])
+    return values[((values * signs) < (np.array(setting) * signs)).all(axis=1)] if len(values) else values
+
+
+def _spread(values: np.ndarray, directions, setting: Setting, ideal: np.ndarray, extremes: np.ndarray | None) -> float:
+    points = in_box(values, directions, setting)
+    points = points[metrics.nondominated(points, directions)] if len(points) else points
+    return metrics.spread(points, directions, bounds=(ideal, np.array(setting)), extremes=extremes)
+
+
+def published_fronts(directory: Path, instance: str, n_objectives: int) -> list[np.ndarray]:
+    """Published fronts of an instance: ``{instance}_rep{R}.front.tsv`` (a header line, then one tab-separated row per policy)."""
+    fronts = []
+    for path in sorted(directory.glob(f"{instance}_rep*.front.tsv"), key=lambda p: int(p.stem.split("_rep")[-1].split(".")[0])):
+        rows = [line.split("\t")[:n_objectives] for line in path.read_text().splitlines()[1:] if line.strip()]
+        fronts.append(np.array(rows, dtype=float).reshape(-1, n_objectives))
+    return fronts
+
+
+def analyse(records: Sequence[RunRecord], settings: Sequence[Setting], published: Path | None = None) -> list[Row]:
+    by_instance: dict[str, list[RunRecord]] = defaultdict(list)
+    for record in records:
+        by_instance[record.instance].append(record)
+    rows = []
+    for instance, runs in by_instance.items():
+        runs = sorted(runs, key=lambda r: r.repetition)
+        directions = [Direction(o["direction"]) for o in runs[0].objectives]
+        fronts = [records_values(r)[0] for r in runs]
+        baseline = records_values(runs[0])[1]
+        theirs = published_fronts(published, instance, len(directions)) if published else []
+        everything = np.vstack([baseline, *fronts, *theirs])
+        as_min = everything * np.array([d.sign for d in directions])
+        ideal = as_min.min(axis=0) * np.array([d.sign for d in directions])
+        for setting in settings:
+            box_all = in_box(everything, directions, setting)
+            box_front = box_all[metrics.nondominated(box_all, directions)] if len(box_all) else box_all
+            extremes = None
+            if len(box_front) >= 2:
+                order = np.argsort(box_front[:, 0] * directions[0].sign)
+                extremes = box_front[[order[0], order[-1]]]
+            base_hv = metrics.hypervolume(baseline, directions, setting)
+            hv = tuple(metrics.hypervolume(f, directions, setting) for f in fronts)
+            base_sp = _spread(baseline, directions, setting, ideal, extremes)
+            sp = tuple(_spread(f, directions, setting, ideal, extremes) for f in fronts)
+            hv_test = compare([h - base_hv for h in hv], [0.0] * len(hv))
+            # spread: lower is better, so "better" means the gains are below zero
+            sp_test = compare([0.0] * len(sp), [s - base_sp for s in sp])
+            row = dict(
+                instance=instance, setting=tuple(setting), baseline_hv=base_hv, hv=hv, hv_verdict=hv_test.verdict,
+                hv_p=hv_test.p_value, hv_a12=hv_test.a12, baseline_spread=base_sp, spread=sp,
+                spread_verdict=sp_test.verdict, spread_p=sp_test.p_value, spread_a12=sp_test.a12,
+            )
+            if theirs:
+                their_hv = tuple(metrics.hypervolume(f, directions, setting) for f in theirs)
+                test = compare(hv, their_hv)
+                row.update(published_hv=their_hv, published_verdict=test.verdict, published_p=test.p_value, published_a12=test.a12)
+            rows.append(Row(**row))
+    return rows
+
+
+def counts(rows: Sequence[Row], setting: Setting, attribute: str) -> tuple[int, int, int]:
+    verdicts = [getattr(r, attribute) for r in rows if r.setting == setting]
+    return verdicts.count("better"), verdicts.count("worse"), verdicts.count("same")
+
+
+def table2_markdown(rows: Sequence[Row], settings: Sequence[Setting], names: Sequence[str], published: bool) -> str:
+    out = io.StringIO()
+    head = f"| {' | '.join(names)} | HV better/worse/same | SP better/worse/same |"
+    if published:
+        head += " HV vs published better/worse/same | median HV >= published |"
+    out.write(head + "\n|" + "---|" * (head.count("|") - 1) + "\n")
+    totals = np.zeros(9 if published else 6, dtype=int)
+    for setting in settings:
+        hv, sp = counts(rows, setting, "hv_verdict"), counts(rows, setting, "spread_verdict")
+        line = f"| {' | '.join(f'{b:g}' for b in setting)} | {'/'.join(map(str, hv))} | {'/'.join(map(str, sp))} |"
+        values = [*hv, *sp]
+        if published:
+            pub = counts(rows, setting, "published_verdict")
+            selected = [r for r in rows if r.setting == setting and r.published_hv]
+            at_least = sum(np.median(r.hv) >= np.median(r.published_hv) for r in selected)
+            line += f" {'/'.join(map(str, pub))} | {at_least}/{len(selected)} |"
+            values += [*pub]
+        totals[: len(values)] += values
+        out.write(line + "\n")
+    total = f"| all | {'/'.join(map(str, totals[0:3]))} | {'/'.join(map(str, totals[3:6]))} |"
+    if published:
+        total += f" {'/'.join(map(str, totals[6:9]))} | |"
+    out.write(total + "\n")
+    return out.getvalue()
+
+
+def rows_csv(rows: Sequence[Row], names: Sequence[str]) -> str:
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow([
+        "instance", *(f"bound_{n}" for n in names), "baseline_hv", "median_hv", "hv_verdict", "hv_p", "hv_a12",
+        "baseline_spread", "median_spread", "spread_verdict", "spread_p", "spread_a12",
+        "published_median_hv", "published_verdict", "published_p", "published_a12",
+    ])
+    for r in rows:
+        writer.writerow([
+            r.instance, *r.setting, r.baseline_hv, float(np.median(r.hv)), r.hv_verdict, r.hv_p, r.hv_a12,
+            r.baseline_spread, float(np.median(r.spread)), r.spread_verdict, r.spread_p, r.spread_a12,
+            float(np.median(r.published_hv)) if r.published_hv else "", r.published_verdict,
+            "" if not r.published_hv else r.published_p, "" if not r.published_hv else r.published_a12,
+        ])
+    return out.getvalue()
+
+
+def box_plots(rows: Sequence[Row], setting: Setting, caption: str, path_stem: Path) -> list[Path]:
+    """Fig. 4: per instance, the repetitions' hypervolume gains and spread gains over the baseline."""
+    selected = [r for r in rows if r.setting == setting]
+    written = []
+    for key, label in (("hv", "hypervolume gain (higher is better)"), ("spread", "spread gain (lower is better)")):
+        base = "baseline_hv" if key == "hv" else "baseline_spread"
+        data = [np.array(getattr(r, key)) - getattr(r, base) for r in selected]
+        width = max(6.0, 0.14 * len(selected) + 2)
+        fig, ax = plt.subplots(figsize=(width, 3.8))
+        ax.boxplot(data, showfliers=True, flierprops={"markersize": 2})
+        ax.axhline(0.0, color="tab:red", lw=0.8)
+        ax.set_xticks(range(1, len(selected) + 1))
+        ax.set_xticklabels([r.instance.replace("map_", "") for r in selected], rotation=90, fontsize=6)
+        ax.set_ylabel(label)
+        ax.set_title(f"{label.split(' (')[0]} per instance, {caption}", fontsize=10)
+        fig.tight_layout()
+        for suffix in (".png", ".pdf"):
+            target = path_stem.with_name(f"{path_stem.name}_{key}{suffix}")
+            fig.savefig(target, dpi=140)
+            written.append(target)
+        plt.close(fig)
+    return written

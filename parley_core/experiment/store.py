@@ -1,0 +1,143 @@
+"""The results store of campaigns: one SQLite file, one row per finished run.
+
+Each run is written in one transaction, under a unique (campaign, instance, repetition) key,
+so a campaign killed at any moment keeps every finished run exactly once and a restart
+skips them. A campaign's settings are recorded when it starts; resuming it with other
+settings is refused.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from attrs import frozen
+
+from parley_core.errors import OutputError
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS campaigns (
+    name TEXT PRIMARY KEY,
+    case_study TEXT NOT NULL,
+    settings TEXT NOT NULL,
+    created REAL NOT NULL
+);
+CREATE TABLE IF NOT EXISTS runs (
+    campaign TEXT NOT NULL REFERENCES campaigns(name),
+    instance TEXT NOT NULL,
+    repetition INTEGER NOT NULL,
+    seed INTEGER NOT NULL,
+    options TEXT NOT NULL,
+    objectives TEXT NOT NULL,
+    front TEXT NOT NULL,
+    baseline TEXT NOT NULL,
+    summary TEXT NOT NULL,
+    finished REAL NOT NULL,
+    PRIMARY KEY (campaign, instance, repetition)
+);
+"""
+
+
+@frozen(kw_only=True)
+class RunRecord:
+    """One finished run: its front and baseline values, and what produced them."""
+
+    campaign: str
+    instance: str
+    repetition: int
+    seed: int
+    options: dict[str, Any]
+    objectives: list[dict[str, str]]
+    front: dict[str, Any]
+    """{"policies": [[decision values]...], "values": [[objective values]...]}"""
+    baseline: dict[str, Any]
+    """{"names": [...], "values": [[...]...]}"""
+    summary: dict[str, Any]
+    """evaluations, timings, verification, quotient size... (JSON-friendly)"""
+
+
+class Store:
+    """A campaign results file. Use as a context manager, or call close()."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        if self.path.exists() and not self.path.is_file():
+            raise OutputError(f"store {self.path} is not a file; give a path for the SQLite results file")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self.connection = sqlite3.connect(self.path, timeout=60, isolation_level=None)
+            self.connection.execute("PRAGMA journal_mode=WAL")
+            self.connection.execute("PRAGMA synchronous=FULL")
+            self.connection.executescript(SCHEMA)
+        except sqlite3.DatabaseError as exc:
+            raise OutputError(f"store {self.path} cannot be used as a SQLite results file ({exc})") from None
+
+    def __enter__(self) -> Store:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self.connection.close()
+
+    def begin_campaign(self, name: str, case_study: str, settings: dict[str, Any]) -> None:
+        """Record a campaign, or check that a recorded one has the same case study and settings."""
+        row = self.connection.execute("SELECT case_study, settings FROM campaigns WHERE name = ?", (name,)).fetchone()
+        text = json.dumps(settings, sort_keys=True)
+        if row is None:
+            self.connection.execute(
+                "INSERT INTO campaigns (name, case_study, settings, created) VALUES (?, ?, ?, ?)",
+                (name, case_study, text, time.time()),
+            )
+            return
+        if row[0] != case_study or row[1] != text:
+            raise OutputError(
+                f"store {self.path} already holds campaign {name!r} with other settings ({row[0]}: {row[1]}); "
+                "rerun with the same settings to resume it, or give another --name or --store"
+            )
+
+    def campaigns(self) -> list[tuple[str, str, dict[str, Any]]]:
+        rows = self.connection.execute("SELECT name, case_study, settings FROM campaigns ORDER BY created").fetchall()
+        return [(name, case, json.loads(settings)) for name, case, settings in rows]
+
+    def done(self, campaign: str) -> set[tuple[str, int]]:
+        rows = self.connection.execute("SELECT instance, repetition FROM runs WHERE campaign = ?", (campaign,))
+        return {(instance, repetition) for instance, repetition in rows}
+
+    def add(self, record: RunRecord) -> bool:
+        """Store a finished run in one transaction; False if that run was stored already."""
+        try:
+            self.connection.execute("BEGIN IMMEDIATE")
+            cursor = self.connection.execute(
+                "INSERT OR IGNORE INTO runs (campaign, instance, repetition, seed, options, objectives, front, baseline, summary, finished) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (
+                    record.campaign, record.instance, record.repetition, record.seed,
+                    json.dumps(record.options), json.dumps(record.objectives), json.dumps(record.front),
+                    json.dumps(record.baseline), json.dumps(record.summary), time.time(),
+                ),
+            )
+            self.connection.execute("COMMIT")
+        except BaseException:
+            if self.connection.in_transaction:
+                self.connection.execute("ROLLBACK")
+            raise
+        return cursor.rowcount == 1
+
+    def runs(self, campaign: str | None = None) -> Iterator[RunRecord]:
+        query = "SELECT campaign, instance, repetition, seed, options, objectives, front, baseline, summary FROM runs"
+        args: tuple = ()
+        if campaign is not None:
+            query += " WHERE campaign = ?"
+            args = (campaign,)
+        for row in self.connection.execute(query + " ORDER BY campaign, instance, repetition", args):
+            yield RunRecord(
+                campaign=row[0], instance=row[1], repetition=row[2], seed=row[3], options=json.loads(row[4]),
+                objectives=json.loads(row[5]), front=json.loads(row[6]), baseline=json.loads(row[7]),
+                summary=json.loads(row[8]),
+            )

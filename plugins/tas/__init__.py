@@ -1,0 +1,161 @@
+"""tas: the Tele Assistance System exemplar (Weyns & Calinescu, SEAMS 2015).
+
+A patient's device asks a medical analysis service to analyse vital parameters (or the
+panic button raises an alarm); the analysis may ask the drug service to change the drug or
+the dose, or the alarm service to send an alarm. When the primary analysis provider fails,
+the workflow fails over to a backup provider, whose health drifts unseen; the
+uncertainty-aware controller (UAC) picks the backup or a dearer, stable alternative by its
+*estimate* of the backup's health. A probe (a test invocation of the backup, at a cost)
+makes the estimate exact. The URC decides, per estimated backup level and load phase,
+after how many executions to probe (or never). See docs/tas.md.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from attrs import field, frozen, validators
+
+from parley_core import Baseline, CaseStudy, DecisionKind, Direction, Objective, OptionError, Service, SystemModel, hookimpl
+from parley_plugins.tas.generator import PROVIDERS, Scenario, prism_model
+
+_probability = [validators.ge(0.0), validators.le(1.0)]
+
+
+def _positive(_instance, attribute, value) -> None:
+    if value <= 0:
+        raise ValueError(f"option {attribute.name} must be positive, got {value}")
+
+
+@frozen(kw_only=True)
+class TasOptions:
+    rounds: int = field(default=30, validator=_positive, metadata={"help": "workflow executions the objectives average over"})
+    max_interval: int = field(
+        default=10,
+        validator=_positive,
+        metadata={"help": "largest probing interval (executions); the URC may also choose max_interval+1: never probe"},
+    )
+    backup_levels: str = field(
+        default="0.05,0.3,1.0",
+        metadata={
+            "help": "failure rate of the backup (MAS5) per health level, comma-separated, from healthy (the table's 0.05) to worst"
+        },
+    )
+    degrade: float = field(default=0.05, validator=_probability, metadata={"help": "per execution, probability that the backup gets one level worse"})
+    recover: float = field(default=0.1, validator=_probability, metadata={"help": "per execution, probability that the backup gets one level better"})
+    peak_start: float = field(default=0.1, validator=_probability, metadata={"help": "per execution, probability that normal load turns to peak load"})
+    peak_end: float = field(default=0.2, validator=_probability, metadata={"help": "per execution, probability that peak load turns to normal"})
+    primary_failure: float = field(default=0.12, validator=_probability, metadata={"help": "failure rate of the primary provider (MAS1) at normal load"})
+    primary_failure_peak: float = field(default=0.24, validator=_probability, metadata={"help": "failure rate of the primary provider at peak load"})
+    p_vital: float = field(default=0.7, validator=_probability, metadata={"help": "probability that an execution analyses vital parameters (else: panic button, alarm)"})
+    p_alarm: float = field(default=0.12, validator=_probability, metadata={"help": "probability that an analysis asks for an alarm"})
+    p_drug: float = field(default=0.45, validator=_probability, metadata={"help": "probability that an analysis asks for a drug change"})
+    p_dose: float = field(default=0.43, validator=_probability, metadata={"help": "probability that an analysis asks for a dose change (the rest: patient ok)"})
+    probe_cost: float = field(
+        default=PROVIDERS["MAS5"].cost, validator=validators.ge(0.0), metadata={"help": "cost of a probe (a test invocation of the backup)"}
+    )
+    response_time: bool = field(default=False, metadata={"help": "add a third objective: expected response time per execution (ms)"})
+
+
+def scenario(options: TasOptions) -> Scenario:
+    """The checked scenario of ``options``; OptionError says what to change."""
+    try:
+        levels = tuple(float(part) for part in options.backup_levels.split(","))
+    except ValueError:
+        raise OptionError(
+            f"backup_levels={options.backup_levels!r}: give failure rates separated by commas, e.g. 0.05,0.3,1.0"
+        ) from None
+    if not 2 <= len(levels) <= 6 or not all(0.0 <= rate <= 1.0 for rate in levels):
+        raise OptionError(f"backup_levels={options.backup_levels!r}: give 2 to 6 failure rates, each in 0..1")
+    if options.degrade + options.recover > 1.0:
+        raise OptionError(f"degrade + recover = {options.degrade + options.recover:g} exceeds 1; lower one of them")
+    if options.p_alarm + options.p_drug + options.p_dose > 1.0 + 1e-12:
+        raise OptionError("p_alarm + p_drug + p_dose exceeds 1; they are probabilities of distinct analysis results")
+    return Scenario(
+        rounds=options.rounds,
+        max_interval=options.max_interval,
+        backup_levels=levels,
+        degrade=options.degrade,
+        recover=options.recover,
+        peak_start=options.peak_start,
+        peak_end=options.peak_end,
+        primary_failure=options.primary_failure,
+        primary_failure_peak=options.primary_failure_peak,
+        p_vital=options.p_vital,
+        p_alarm=options.p_alarm,
+        p_drug=options.p_drug,
+        p_dose=options.p_dose,
+        probe_cost=options.probe_cost,
+    )
+
+
+def build(options: TasOptions) -> SystemModel:
+    s = scenario(options)
+    horizon = s.horizon
+    never = s.max_interval + 1
+    objectives = [
+        Objective(
+            name="failure",
+            formula=f'R{{"failures"}}=? [C<={horizon}]',
+            direction=Direction.MIN,
+            description=f"probability that a workflow execution fails, averaged over the first {s.rounds} executions",
+        ),
+        Objective(
+            name="cost",
+            formula=f'R{{"cost"}}=? [C<={horizon}]',
+            direction=Direction.MIN,
+            description=f"expected cost per execution (provider invocations and probes), over the first {s.rounds} executions",
+        ),
+    ]
+    if options.response_time:
+        objectives.append(
+            Objective(
+                name="response_time",
+                formula=f'R{{"time"}}=? [C<={horizon}]',
+                direction=Direction.MIN,
+                description="expected response time per execution (ms), over the same executions",
+            )
+        )
+    return SystemModel(
+        name="tas",
+        description=f"TAS, {s.rounds} executions, backup levels {','.join(f'{r:g}' for r in s.backup_levels)}",
+        prism=prism_model(s),
+        services=[
+            Service(
+                name="probe",
+                constant="c",
+                kind=DecisionKind.FREQUENCY,
+                low=1,
+                high=never,
+                description=f"probe the backup once the execution counter reaches c (every c-th execution); {never} = never",
+            )
+        ],
+        observation=("bhat", "load"),
+        objectives=objectives,
+        baselines=[
+            *(Baseline(name=f"every-{k}", values={"c": k}) for k in range(1, s.max_interval + 1)),
+            Baseline(name="never", values={"c": never}),
+        ],
+        context=s,
+    )
+
+
+def plot_policy(system: SystemModel, table, path: Path) -> None:
+    from parley_plugins.tas.plot import draw_policy
+
+    draw_policy(system.context, {valuation: values["c"] for valuation, values in table.items()}, path)
+
+
+CASE_STUDY = CaseStudy(
+    name="tas",
+    description="Tele Assistance System: how often to probe a drifting backup service (Weyns & Calinescu 2015)",
+    options_type=TasOptions,
+    build=build,
+    plot_policy=plot_policy,
+    quick={"rounds": "6", "max_interval": "3"},
+)
+
+
+@hookimpl
+def parley_case_studies() -> list[CaseStudy]:
+    return [CASE_STUDY]

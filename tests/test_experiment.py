@@ -1,0 +1,160 @@
+"""Campaigns: the store, planning, statistics, reports, resuming after SIGKILL, and Dask."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from parley_core.errors import OptionError, OutputError
+from parley_core.experiment import report
+from parley_core.experiment.campaign import Budget, execute, instance_label, instances_from, plan
+from parley_core.experiment.stats import a12, compare
+from parley_core.experiment.store import RunRecord, Store
+from parley_core.plugins import load_registry
+
+ROBOT = load_registry().get("robot_grid")
+TINY = Budget(population=6, generations=2)
+OBJECTIVES = [{"name": "success", "direction": "max", "formula": "P=? [F \"goal\"]"}, {"name": "cost", "direction": "min", "formula": "R=? [C<=9]"}]
+
+
+def record(instance: str, repetition: int, front, baseline, campaign: str = "c") -> RunRecord:
+    return RunRecord(
+        campaign=campaign, instance=instance, repetition=repetition, seed=repetition + 1, options={},
+        objectives=OBJECTIVES, front={"policies": [[1]] * len(front), "values": front},
+        baseline={"names": ["b"] * len(baseline), "values": baseline}, summary={},
+    )
+
+
+def test_store_keeps_each_run_once_and_checks_campaign_settings(tmp_path):
+    with Store(tmp_path / "s.sqlite") as store:
+        store.begin_campaign("c", "robot_grid", {"population": 6})
+        assert store.add(record("map_1", 0, [[0.9, 10.0]], [[0.8, 12.0]]))
+        assert not store.add(record("map_1", 0, [[0.1, 1.0]], [[0.8, 12.0]]))
+        assert store.done("c") == {("map_1", 0)}
+        assert [r.front["values"] for r in store.runs("c")] == [[[0.9, 10.0]]]
+        store.begin_campaign("c", "robot_grid", {"population": 6})
+        with pytest.raises(OutputError, match="already holds campaign 'c' with other settings"):
+            store.begin_campaign("c", "robot_grid", {"population": 7})
+
+
+def test_planning(tmp_path):
+    (tmp_path / "map_10.csv").write_text("0,0\n0,0\n")
+    (tmp_path / "map_9.csv").write_text("0,0\n0,0\n")
+    instances = instances_from(ROBOT, ["p=0.01,0.02"], str(tmp_path))
+    assert [instance_label(i) for i in instances] == ["p=0.01 map_9", "p=0.01 map_10", "p=0.02 map_9", "p=0.02 map_10"]
+    specs = plan("c", ROBOT, instances, ["horizon=30"], 2, TINY, first_seed=5)
+    assert len(specs) == 8 and {s.seed for s in specs} == {5, 6}
+    assert specs[0].assignments == ("horizon=30", "p=0.01", f"map={tmp_path / 'map_9.csv'}")
+    with pytest.raises(OptionError, match="malformed --grid"):
+        instances_from(ROBOT, ["seed"])
+    with pytest.raises(OptionError, match="matches no file"):
+        instances_from(ROBOT, [], str(tmp_path / "nothing*.csv"))
+    with pytest.raises(OptionError, match="unknown option 'colour'"):
+        plan("c", ROBOT, [("colour=red",)], [], 1, TINY)
+
+
+def test_a12_and_mann_whitney():
+    assert a12([2, 3, 4], [1, 1, 1]) == 1.0
+    assert a12([1, 2], [2, 1]) == 0.5
+    assert a12([1, 1], [1, 2]) == pytest.approx(0.25)
+    ten = np.arange(1, 11) / 10
+    assert compare(ten, np.zeros(10)).verdict == "better"
+    assert compare(-ten, np.zeros(10)).verdict == "worse"
+    assert compare(np.zeros(10), np.zeros(10)).verdict == "same"
+    assert compare([0.1, -0.1, 0.2, -0.2], [0, 0, 0, 0]).verdict == "same"
+
+
+def test_report_on_fronts_with_known_hypervolumes():
+    # baseline: one point (0.8, 60): hypervolume in the box (0.7, 80) is 0.1 * 20 = 2.
+    # "better" repetitions add (0.9, 70): + 0.1 * 10 -> 3; "worse" ones only have (0.75, 70): 0.05 * 10.
+    baseline = [[0.8, 60.0], [0.5, 10.0]]
+    records = [record("better", r, [[0.8, 60.0], [0.9, 70.0 - r * 0.1]], baseline) for r in range(10)]
+    records += [record("worse", r, [[0.75, 70.0 - r * 0.1]], baseline) for r in range(10)]
+    rows = report.analyse(records, [(0.7, 80.0)])
+    by = {r.instance: r for r in rows}
+    assert by["better"].baseline_hv == pytest.approx(2.0)
+    assert by["better"].hv[0] == pytest.approx(3.0)
+    assert (by["better"].hv_verdict, by["worse"].hv_verdict) == ("better", "worse")
+    assert report.counts(rows, (0.7, 80.0), "hv_verdict") == (1, 1, 0)
+    assert "| 0.7 | 80 | 1/1/0 |" in report.table2_markdown(rows, [(0.7, 80.0)], ["success >=", "cost <="], False)
+
+
+def test_report_compares_with_published_fronts(tmp_path):
+    baseline = [[0.8, 60.0]]
+    records = [record("map_1", r, [[0.85, 60.0]], baseline) for r in range(10)]
+    for r in range(10):
+        (tmp_path / f"map_1_rep{r}.front.tsv").write_text("P\tcost\n0.81\t60.0\n")
+    rows = report.analyse(records, [(0.7, 80.0)], published=tmp_path)
+    assert rows[0].published_hv[0] == pytest.approx(0.11 * 20)
+    assert rows[0].published_verdict == "better"
+
+
+def _campaign_command(store, name="k"):
+    return [
+        sys.executable, "-m", "parley_core", "experiment", "run", "robot_grid", "--store", str(store), "--name", name,
+        "--grid", "seed=1,2,3,4", "--set", "size=4", "--set", "max_interval=3", "--reps", "2",
+        "--population", "6", "--generations", "2", "--workers", "1",
+    ]
+
+
+def test_a_campaign_killed_with_sigkill_resumes_without_losing_or_repeating(tmp_path):
+    store = tmp_path / "k.sqlite"
+    process = subprocess.Popen(_campaign_command(store), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        deadline = time.time() + 120
+        stored = 0
+        while time.time() < deadline and stored < 2:
+            time.sleep(0.2)
+            if store.exists():
+                try:
+                    with sqlite3.connect(store) as connection:
+                        stored = connection.execute("SELECT COUNT(*) FROM runs").fetchone()[0]
+                except sqlite3.OperationalError:
+                    pass
+        assert stored >= 2, "the campaign did not store runs in time"
+    finally:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+    with sqlite3.connect(store) as connection:
+        before = dict(((i, r), f) for i, r, f in connection.execute("SELECT instance, repetition, finished FROM runs"))
+    assert 2 <= len(before) < 8
+    finished = subprocess.run(_campaign_command(store), capture_output=True, text=True, timeout=300)
+    assert finished.returncode == 0, finished.stderr
+    assert f"{len(before)} already stored, {8 - len(before)} stored now" in " ".join(finished.stdout.split())
+    with sqlite3.connect(store) as connection:
+        rows = connection.execute("SELECT instance, repetition, finished FROM runs").fetchall()
+    keys = [(i, r) for i, r, _ in rows]
+    assert len(keys) == len(set(keys)) == 8
+    assert all(before[(i, r)] == f for i, r, f in rows if (i, r) in before), "a stored run was computed again"
+
+
+def test_the_dask_path_on_a_local_cluster(tmp_path):
+    distributed = pytest.importorskip("dask.distributed")
+    specs = plan("d", ROBOT, [("seed=1",), ("seed=2",)], ["size=4", "max_interval=3"], 1, TINY)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with Store(tmp_path / "d.sqlite") as store:
+            store.begin_campaign("d", "robot_grid", {})
+            outcome = execute(specs, store, scheduler=cluster.scheduler_address)
+            assert (outcome.stored, outcome.failures) == (2, [])
+            local = execute(specs, store, workers=1)
+            assert (local.skipped, local.stored) == (2, 0)
+            values = [r.front["values"] for r in store.runs("d")]
+    # the same runs computed locally give the same fronts
+    with Store(tmp_path / "l.sqlite") as store:
+        store.begin_campaign("d", "robot_grid", {})
+        execute(specs, store, workers=1)
+        assert [r.front["values"] for r in store.runs("d")] == values
+
+
+def test_scheduler_that_cannot_be_reached(tmp_path):
+    pytest.importorskip("dask.distributed")
+    specs = plan("d", ROBOT, [("seed=1",)], ["size=4"], 1, TINY)
+    with Store(tmp_path / "d.sqlite") as store, pytest.raises(OptionError, match="cannot reach the Dask scheduler"):
+        execute(specs, store, scheduler="tcp://127.0.0.1:1")
