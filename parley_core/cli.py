@@ -398,6 +398,43 @@ def experiment_run(
         raise typer.Exit(1)
 
 
+@experiment_app.command("verify")
+@_user_errors
+def experiment_verify(
+    store: Annotated[Path, typer.Option(help="SQLite results file of `parley experiment run`.")],
+    name: Annotated[str | None, typer.Option(help="Campaign name (default: the store's only campaign).")] = None,
+    workers: Annotated[int | None, typer.Option("--workers", "-j", min=1, help="Processes at once (default: one per core).")] = None,
+) -> None:
+    """Re-check with Storm every stored front not yet checked (runs of --no-verify); resumable."""
+    from parley_core.experiment.campaign import verify_stored
+    from parley_core.experiment.store import Store
+
+    if not store.is_file():
+        raise OptionError(f"store {store} does not exist; give the file of `parley experiment run --store`")
+    with Store(store) as results:
+        campaign, case_name = _pick_campaign(results, store, name)
+        total = sum(1 for _ in results.runs(campaign))
+        with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), console=_stderr()) as progress:
+            task = progress.add_task(f"verify {campaign}", total=total)
+            progress.update(task, completed=sum(1 for r in results.runs(campaign) if str(r.summary.get("verification", {}).get("by", "")).startswith("storm")))
+            now, before, worst = verify_stored(results, campaign, case_name, workers=workers, on_done=lambda _r: progress.advance(task))
+    Console().print(
+        f"campaign {campaign}: {now} fronts re-checked by Storm now, {before} already were; "
+        f"largest difference from the stored values {worst:.1e}"
+    )
+
+
+def _pick_campaign(results, store: Path, name: str | None) -> tuple[str, str]:
+    campaigns = results.campaigns()
+    if not campaigns:
+        raise OptionError(f"store {store} holds no campaign")
+    names = [c[0] for c in campaigns]
+    chosen = name or (names[0] if len(names) == 1 else None)
+    if chosen not in names:
+        raise OptionError(f"give --name: store {store} holds campaigns {', '.join(names)}")
+    return chosen, next(c[1] for c in campaigns if c[0] == chosen)
+
+
 @experiment_app.command("report")
 @_user_errors
 def experiment_report(
@@ -425,14 +462,8 @@ def experiment_report(
         raise OptionError(f"--published {published} is not a directory")
     check_output(out, force)
     with Store(store) as results:
-        campaigns = results.campaigns()
-        if not campaigns:
-            raise OptionError(f"store {store} holds no campaign")
-        names = [c[0] for c in campaigns]
-        chosen = name or (names[0] if len(names) == 1 else None)
-        if chosen not in names:
-            raise OptionError(f"give --name: store {store} holds campaigns {', '.join(names)}")
-        case_name, settings_record = next((c[1], c[2]) for c in campaigns if c[0] == chosen)
+        chosen, case_name = _pick_campaign(results, store, name)
+        settings_record = next(c[2] for c in results.campaigns() if c[0] == chosen)
         records = list(results.runs(chosen))
     if not records:
         raise OptionError(f"campaign {chosen} in {store} has no finished run yet")

@@ -158,3 +158,21 @@ def test_scheduler_that_cannot_be_reached(tmp_path):
     specs = plan("d", ROBOT, [("seed=1",)], ["size=4"], 1, TINY)
     with Store(tmp_path / "d.sqlite") as store, pytest.raises(OptionError, match="cannot reach the Dask scheduler"):
         execute(specs, store, scheduler="tcp://127.0.0.1:1")
+
+
+def test_unverified_fronts_are_verified_later_by_storm(tmp_path):
+    from parley_core.experiment.campaign import is_verified, verify_stored
+
+    specs = plan("v", ROBOT, [("seed=1",), ("seed=2",)], ["size=4", "max_interval=3"], 1, Budget(population=6, generations=2, verify=False))
+    with Store(tmp_path / "v.sqlite") as store:
+        store.begin_campaign("v", "robot_grid", {})
+        execute(specs, store, workers=1)
+        before = list(store.runs("v"))
+        assert not any(is_verified(r) for r in before)
+        now, already, worst = verify_stored(store, "v", "robot_grid", workers=1)
+        assert (now, already) == (2, 0) and worst <= 1e-9
+        after = list(store.runs("v"))
+        assert all(is_verified(r) for r in after)
+        for old, new in zip(before, after):
+            assert np.allclose(old.front["values"], new.front["values"], atol=1e-9)
+        assert verify_stored(store, "v", "robot_grid", workers=1)[:2] == (0, 2)

@@ -244,3 +244,60 @@ def records_values(record: RunRecord) -> tuple[np.ndarray, np.ndarray]:
 
 def describe(budget: Budget, fixed: Sequence[str]) -> dict[str, Any]:
     return {**asdict(budget), "fixed_options": list(fixed)}
+
+
+def is_verified(record: RunRecord) -> bool:
+    return str(record.summary.get("verification", {}).get("by", "")).startswith("storm")
+
+
+def verify_record(case_name: str, record: RunRecord) -> RunRecord:
+    """Re-check a stored front with the Storm evaluator; keep Storm's values and the
+    non-dominated policies among them, and record the largest difference."""
+    from attrs import evolve
+
+    from parley_core import metrics
+    from parley_core.augment import augment
+    from parley_core.evaluate.storm import StormEvaluator
+    from parley_core.model import Direction
+    from parley_core.plugins import load_registry
+
+    case = load_registry().get(case_name)
+    assignments = [f"{k}={'none' if v is None else v}" for k, v in record.options.items()]
+    family = augment(case.build(case.options(assignments)))
+    policies = np.array(record.front["policies"], dtype=np.int64).reshape(-1, len(family.decisions))
+    searched = np.array(record.front["values"], dtype=float).reshape(len(policies), -1)
+    start = __import__("time").perf_counter()
+    with StormEvaluator(family, workers=1) as storm:
+        checked = storm.evaluate(policies)
+    directions = [Direction(o["direction"]) for o in record.objectives]
+    keep = metrics.nondominated(checked, directions)
+    summary = dict(record.summary)
+    summary["verification"] = {
+        "by": "storm",
+        "policies": len(policies),
+        "max_difference": float(np.abs(checked - searched).max()) if len(policies) else 0.0,
+        "seconds": __import__("time").perf_counter() - start,
+    }
+    return evolve(
+        record,
+        front={"policies": policies[keep].tolist(), "values": checked[keep].tolist()},
+        summary=summary,
+    )
+
+
+def verify_stored(store: Store, campaign: str, case_name: str, *, workers: int | None = None, on_done=None) -> tuple[int, int, float]:
+    """Verify every stored front of a campaign that Storm has not checked yet; returns
+    (verified now, already verified, largest difference)."""
+    records = list(store.runs(campaign))
+    todo = [r for r in records if not is_verified(r)]
+    worst = 0.0
+    workers = max(1, workers if workers is not None else (os.cpu_count() or 1))
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {pool.submit(verify_record, case_name, r): r for r in todo}
+        for future in as_completed(futures):
+            checked = future.result()
+            store.replace_front(checked)
+            worst = max(worst, checked.summary["verification"]["max_difference"])
+            if on_done:
+                on_done(checked)
+    return len(todo), len(records) - len(todo), worst

@@ -141,3 +141,17 @@ class Store:
                 objectives=json.loads(row[5]), front=json.loads(row[6]), baseline=json.loads(row[7]),
                 summary=json.loads(row[8]),
             )
+
+    def replace_front(self, record: RunRecord) -> None:
+        """Replace a stored run's front and summary (after verification), in one transaction."""
+        try:
+            self.connection.execute("BEGIN IMMEDIATE")
+            self.connection.execute(
+                "UPDATE runs SET front = ?, summary = ? WHERE campaign = ? AND instance = ? AND repetition = ?",
+                (json.dumps(record.front), json.dumps(record.summary), record.campaign, record.instance, record.repetition),
+            )
+            self.connection.execute("COMMIT")
+        except BaseException:
+            if self.connection.in_transaction:
+                self.connection.execute("ROLLBACK")
+            raise
