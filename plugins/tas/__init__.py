@@ -47,10 +47,16 @@ class TasOptions:
     peak_end: float = field(default=0.2, validator=_probability, metadata={"help": "per execution, probability that peak load turns to normal"})
     primary_failure: float = field(default=0.12, validator=_probability, metadata={"help": "failure rate of the primary provider (MAS1) at normal load"})
     primary_failure_peak: float = field(default=0.24, validator=_probability, metadata={"help": "failure rate of the primary provider at peak load"})
-    p_vital: float = field(default=0.7, validator=_probability, metadata={"help": "probability that an execution analyses vital parameters (else: panic button, alarm)"})
-    p_alarm: float = field(default=0.12, validator=_probability, metadata={"help": "probability that an analysis asks for an alarm"})
-    p_drug: float = field(default=0.45, validator=_probability, metadata={"help": "probability that an analysis asks for a drug change"})
-    p_dose: float = field(default=0.43, validator=_probability, metadata={"help": "probability that an analysis asks for a dose change (the rest: patient ok)"})
+    p_vital: float = field(
+        default=0.75,
+        validator=_probability,
+        metadata={"help": "probability that an execution analyses vital parameters, else the panic button raises an alarm (TAS profile: 0.75)"},
+    )
+    p_alarm: float = field(default=1 / 3, validator=_probability, metadata={"help": "probability that an analysis asks for an alarm (TAS: 1/3)"})
+    p_drug: float = field(default=1 / 3, validator=_probability, metadata={"help": "probability that an analysis asks for a drug change (TAS: 1/3)"})
+    p_dose: float = field(
+        default=1 / 3, validator=_probability, metadata={"help": "probability that an analysis asks for a dose change (TAS: 1/3); the rest: patient ok"}
+    )
     probe_cost: float = field(
         default=PROVIDERS["MAS5"].cost, validator=validators.ge(0.0), metadata={"help": "cost of a probe (a test invocation of the backup)"}
     )

@@ -200,8 +200,8 @@ def test_without_drift_the_estimate_is_always_right():
         f_primary = peak * options.primary_failure_peak + (1 - peak) * options.primary_failure
         f_over = 0.05  # the healthy backup, trusted
         analysed = 1 - f_primary * f_over
-        vital = f_primary * f_over + analysed * (0.12 * 0.04 + 0.88 * 0.01)
-        expected += 0.7 * vital + 0.3 * 0.04
+        vital = f_primary * f_over + analysed * (options.p_alarm * 0.04 + (options.p_drug + options.p_dose) * 0.01)
+        expected += options.p_vital * vital + (1 - options.p_vital) * 0.04
     assert failures[0] == pytest.approx(expected / options.rounds, rel=1e-12)
 
 
