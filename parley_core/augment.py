@@ -19,8 +19,48 @@ from parley_core.prism import program as prism
 from parley_core.prism.writer import command_line
 
 
-def augment(system: SystemModel) -> Family:
-    """The parametric model of ``system`` with one decision constant per service and observation valuation."""
+FORMATS = ("prism", "evochecker", "paynt")
+
+
+def _declaration(name: str, low: int, high: int, form: str) -> str:
+    if form == "prism":
+        return f"const int {name};"
+    if form == "evochecker":
+        return f"evolve int {name} [{low}..{high}];"
+    if form == "paynt":
+        return f"hole int {name} in {{{','.join(str(v) for v in range(low, high + 1))}}};"
+    raise ModelError(f"unknown format {form!r}; valid: {', '.join(FORMATS)}")
+
+
+def augment(system: SystemModel, *, prune: bool = False) -> Family:
+    """The parametric model of ``system`` with one decision constant per service and observation valuation.
+
+    With ``prune``, valuations at which no service is ever consulted (in no reachable state of
+    any policy, found on the quotient MDP) are left out and listed in ``Family.left_out``.
+    """
+    family = _augment(system, None, "prism")
+    if prune:
+        from parley_core.evaluate.quotient import consulted_valuations
+
+        kept = consulted_valuations(family)
+        if len(kept) < len(family.valuations):
+            pruned = _augment(system, [v for v in family.valuations if v in kept], "prism")
+            family = Family(
+                system=system, prism=pruned.prism, decisions=pruned.decisions, valuations=pruned.valuations,
+                left_out=tuple(v for v in family.valuations if v not in kept),
+            )
+    _validate(family, f"the {system.name} model")
+    return family
+
+
+def export(family: Family, form: str) -> str:
+    """The family's parametric model in another tool's syntax: EvoChecker's ``evolve int`` or PAYNT's ``hole``."""
+    if form == "prism":
+        return family.prism
+    return _augment(family.system, list(family.valuations), form).prism
+
+
+def _augment(system: SystemModel, only: list[tuple[int, ...]] | None, form: str) -> Family:
     origin = f"the {system.name} model"
     program = prism.parse_program(system.prism, origin=origin)
     if program.model_type != PrismModelType.DTMC:
@@ -40,7 +80,7 @@ def augment(system: SystemModel) -> Family:
         raise ModelError(f"{origin} leaves constants {', '.join(undefined)} undefined; give them values")
 
     domains = [prism.variable_domain(program, name) for name in system.observation]
-    valuations = tuple(itertools.product(*domains))
+    valuations = tuple(itertools.product(*domains)) if only is None else tuple(only)
     manager = program.expression_manager
 
     # Decision constants, valuation-major, in the order of the services.
@@ -75,9 +115,9 @@ def augment(system: SystemModel) -> Family:
                 updates = [str(update.substitute(mapping)) for update in command.updates]
                 lines.append(command_line(command.action_name, str(guard), updates))
             replacements[command.global_index] = lines
-        _check_bounds(module, wanted, origin)
-        if replacements:
-            new_modules[module.name] = prism.module_with_commands(module, replacements)
+        widened = _widen_bounds(module, service_vars, system, manager, origin)
+        if replacements or widened:
+            new_modules[module.name] = prism.module_with_commands(module, replacements, widened)
 
     unused = [s.constant for s in system.services if s.constant not in used_by]
     if unused:
@@ -90,7 +130,7 @@ def augment(system: SystemModel) -> Family:
     for service in system.services:
         names = [d.name for d in decisions if d.service == service]
         lines = [f"// {service.name} ({service.kind.value}): {service.constant} in {service.low}..{service.high} per observation valuation"]
-        lines += [f"const int {name};" for name in names]
+        lines += [_declaration(name, service.low, service.high, form) for name in names]
         declarations[service.constant] = "\n".join(lines)
 
     header = (
@@ -99,9 +139,7 @@ def augment(system: SystemModel) -> Family:
         "Every policy is an assignment of the undefined constants below."
     )
     text = prism.splice(program, modules=new_modules, constants=declarations, header=header)
-    family = Family(system=system, prism=text, decisions=tuple(decisions), valuations=valuations)
-    _validate(family, origin)
-    return family
+    return Family(system=system, prism=text, decisions=tuple(decisions), valuations=valuations)
 
 
 def _valuation_expression(manager, variables, valuation, names, booleans) -> Expression:
@@ -118,18 +156,27 @@ def _valuation_expression(manager, variables, valuation, names, booleans) -> Exp
     return result
 
 
-def _check_bounds(module, wanted: set, origin: str) -> None:
+def _widen_bounds(module, service_vars: dict, system: SystemModel, manager, origin: str) -> dict[str, str]:
+    """New declarations for variables whose upper bound uses a service constant: the bound
+    becomes the constant's largest value, so a counter can reach whatever a decision allows
+    (``step : [0..c]`` with c in 1..10 becomes ``step : [0..10]``). A service constant in a
+    lower bound or an initial value is an error."""
+    wanted = set(service_vars.values())
+    highest = {service_vars[s.constant]: manager.integer(s.high) for s in system.services}
+    widened = {}
     for variable in module.integer_variables:
-        for what, expression in (
-            ("bounds", variable.lower_bound_expression),
-            ("bounds", variable.upper_bound_expression),
-            ("initial value", variable.initial_value_expression),
-        ):
+        for what, expression in (("lower bound", variable.lower_bound_expression), ("initial value", variable.initial_value_expression)):
             if expression is not None and expression.contains_variable(wanted):
                 raise ModelError(
-                    f"the {what} of variable {variable.name} in {origin} use a service constant; "
-                    "give them fixed values (for a counter, the largest value the constant can take)"
+                    f"the {what} of variable {variable.name} in {origin} uses a service constant; "
+                    "give it a fixed value"
                 )
+        if variable.upper_bound_expression.contains_variable(wanted):
+            upper = variable.upper_bound_expression.substitute(highest)
+            widened[variable.name] = (
+                f"\t{variable.name}: [{variable.lower_bound_expression}..{upper}] init {variable.initial_value_expression};"
+            )
+    return widened
 
 
 def _validate(family: Family, origin: str) -> None:

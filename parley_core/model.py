@@ -122,7 +122,8 @@ class SystemModel:
     prism: str = field(validator=validators.min_len(1))
     services: tuple[Service, ...] = field(converter=_tuple_of(Service), validator=validators.min_len(1))
     observation: tuple[str, ...] = field(converter=tuple, validator=validators.min_len(1))
-    objectives: tuple[Objective, ...] = field(converter=_tuple_of(Objective), validator=validators.min_len(1))
+    objectives: tuple[Objective, ...] = field(converter=_tuple_of(Objective))
+    """What to optimise; may be empty only for augmentation without a search."""
     baselines: tuple[Baseline, ...] = field(converter=_tuple_of(Baseline), factory=tuple)
     description: str = ""
     context: Any = field(default=None, eq=False, repr=False)

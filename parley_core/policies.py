@@ -82,9 +82,10 @@ def _read_long(path: Path, body: list[list[str]], family: Family) -> list[Policy
             raise PolicyError(f"policies file {path}, line {line}: policy {name!r} gives {_show(observation, valuation)} twice")
         table[valuation] = values
     known = set(family.valuations)
+    ignored = set(family.left_out)  # valuations at which no service is ever consulted
     policies = []
     for name, table in tables.items():
-        unknown = [v for v in table if v not in known]
+        unknown = [v for v in table if v not in known and v not in ignored]
         if unknown:
             raise PolicyError(
                 f"policies file {path}: policy {name!r} gives {_show(observation, unknown[0])}, "

@@ -146,15 +146,15 @@ def _observation_rewards(family: Family, program) -> Rewards:
     return Rewards(name=OBSERVATION_REWARD, items=[RewardItem(guard="true", value=" + ".join(terms))])
 
 
-def build_quotient(family: Family) -> Quotient:
-    """Build the quotient MDP with Storm and read it into arrays."""
+def _build_mdp(family: Family, properties_text: list[str]):
+    """The quotient MDP built by Storm (with choice origins), its arrays, and per choice the
+    (decision index, value) pairs that enable it (-1: no decision)."""
     text, tags = quotient_program(family)
     program = prism.parse_program(text, origin="the quotient model")
-    formulas = [o.formula for o in family.objectives]
-    properties = prism.parse_properties(formulas, program, origin="objective")
+    properties = prism.parse_properties(properties_text, program, origin="objective")
     for prop, objective in zip(properties, family.objectives):
         prism.check_property_references(prop, program, origin=f"objective {objective.name!r}")
-    options = stormpy.BuilderOptions(properties)
+    options = stormpy.BuilderOptions(properties) if properties else stormpy.BuilderOptions()
     options.set_build_choice_origins()
     options.set_build_all_reward_models()
     try:
@@ -184,16 +184,38 @@ def build_quotient(family: Family) -> Quotient:
             id_service[identifier, j] = service
             id_value[identifier, j] = value
 
+    # decision of each (full observation valuation, service); -1 where the family left it out
     observation = arrays[f"annotations/rewards/{OBSERVATION_REWARD}/states/values.bin"].astype(np.int64)
-    decision_of = np.full((len(family.valuations), len(family.system.services)), -1, dtype=np.int64)
-    position = {v: i for i, v in enumerate(family.valuations)}
+    full = _full_valuations(family, program)
+    full_index = {v: i for i, v in enumerate(full)}
+    decision_of = np.full((len(full), width), -1, dtype=np.int64)
     services = {s.constant: i for i, s in enumerate(family.system.services)}
     for index, decision in enumerate(family.decisions):
-        decision_of[position[decision.valuation], services[decision.service.constant]] = index
+        decision_of[full_index[decision.valuation], services[decision.service.constant]] = index
     service_of_choice = id_service[identifiers]
     choice_val = id_value[identifiers]
     obs_of_choice = observation[state_of_choice]
     choice_dec = np.where(service_of_choice >= 0, decision_of[obs_of_choice[:, None], np.maximum(service_of_choice, 0)], -1)
+    return mdp, program, properties, arrays, state_choices, state_of_choice, choice_dec, choice_val, service_of_choice, obs_of_choice, full
+
+
+def _full_valuations(family: Family, program) -> list[tuple[int, ...]]:
+    domains = [prism.variable_domain(program, name) for name in family.system.observation]
+    return list(itertools.product(*domains))
+
+
+def consulted_valuations(family: Family) -> set[tuple[int, ...]]:
+    """Observation valuations at which some reachable state of some policy consults a service."""
+    _, _, _, _, _, _, _, _, service_of_choice, obs_of_choice, full = _build_mdp(family, [])
+    tagged = (service_of_choice >= 0).any(axis=1)
+    return {full[i] for i in np.unique(obs_of_choice[tagged])}
+
+
+def build_quotient(family: Family) -> Quotient:
+    """Build the quotient MDP with Storm and read it into arrays."""
+    formulas = [o.formula for o in family.objectives]
+    mdp, program, properties, arrays, state_choices, state_of_choice, choice_dec, choice_val, service_of_choice, _, _ = _build_mdp(family, formulas)
+    n = mdp.nr_states
     if ((service_of_choice >= 0) & (choice_dec < 0)).any():
         raise RuntimeError("a reachable observation valuation has no decision")
 

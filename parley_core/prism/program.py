@@ -189,12 +189,28 @@ def splice(
     return text
 
 
-def module_with_commands(module, replacements: Mapping[int, list[str]]) -> str:
-    """Storm's printing of ``module`` with the commands of the given global indices replaced by new lines."""
+def variable_line(variable) -> str:
+    """An integer or boolean variable's declaration exactly as Storm prints it in a module."""
+    if isinstance(variable, PrismBooleanVariable) or not hasattr(variable, "lower_bound_expression"):
+        return f"{variable.name}: bool init {variable.initial_value_expression};"
+    return (
+        f"{variable.name}: [{variable.lower_bound_expression}..{variable.upper_bound_expression}] "
+        f"init {variable.initial_value_expression};"
+    )
+
+
+def module_with_commands(
+    module, replacements: Mapping[int, list[str]], variables: Mapping[str, str] | None = None
+) -> str:
+    """Storm's printing of ``module`` with the commands of the given global indices replaced
+    by new lines, and the declarations of the named ``variables`` by new ones."""
     by_line: dict[str, list[str]] = {}
     for command in module.commands:
         if command.global_index in replacements:
             by_line[f"\t{command}"] = replacements[command.global_index]
+    for variable in list(module.integer_variables) + list(module.boolean_variables):
+        if variables and variable.name in variables:
+            by_line[f"\t{variable_line(variable)}"] = [variables[variable.name]]
     out = []
     seen = set()
     for line in str(module).split("\n"):
@@ -205,5 +221,5 @@ def module_with_commands(module, replacements: Mapping[int, list[str]]) -> str:
             out.append(line)
     missing = set(by_line) - seen
     if missing:
-        raise RuntimeError(f"could not find commands {sorted(missing)} in module {module.name}")
+        raise RuntimeError(f"could not find {sorted(missing)} in Storm's printing of module {module.name}")
     return "\n".join(out)

@@ -255,12 +255,7 @@ def prism_model(s: Scenario) -> str:
         Constant(name="pVital", type="double", value=s.p_vital, comment="vital parameters (else: panic button)"),
         Constant(name="pResultAlarm", type="double", value=s.p_alarm, comment="analysis result: send an alarm"),
         Constant(name="pResultDrug", type="double", value=s.p_drug, comment="analysis result: change the drug"),
-        Constant(name="pResultDose", type="double", value=s.p_dose, comment="analysis result: change the dose"),
-        *(
-            [Constant(name="pResultOk", type="double", value="1-pResultAlarm-pResultDrug-pResultDose", comment="analysis result: patient ok")]
-            if s.p_ok > 0
-            else []
-        ),
+        Constant(name="pResultDose", type="double", value=s.p_dose, comment="analysis result: change the dose (the rest: ok)"),
         *(
             Constant(name=f"cost{part}", type="double", value=value)
             for part, value in (
@@ -344,9 +339,18 @@ def prism_model(s: Scenario) -> str:
 
 
 def _results(s: Scenario) -> list[tuple[str, int]]:
-    """The analysis results as (probability expression, req value), leaving out impossible ones."""
-    parts = [("pResultAlarm", ALARM, s.p_alarm), ("(pResultDrug+pResultDose)", DRUG, s.p_drug + s.p_dose), ("pResultOk", DONE, s.p_ok)]
-    return [(expression, value) for expression, value, p in parts if p > 0]
+    """The analysis results as (probability expression, req value), leaving out impossible ones.
+
+    The last result's probability is written as 1 minus the others, so that each distribution
+    sums to exactly 1 (also for Storm's exact, rational engine)."""
+    parts = [("pResultAlarm", ALARM, s.p_alarm), ("(pResultDrug+pResultDose)", DRUG, s.p_drug + s.p_dose), ("(1-pResultAlarm-pResultDrug-pResultDose)", DONE, s.p_ok)]
+    kept = [(expression, value) for expression, value, p in parts if p > 0]
+    if len(kept) > 1:
+        last = "(1-" + "-".join(expression for expression, _ in kept[:-1]) + ")"
+        kept[-1] = (last, kept[-1][1])
+    elif kept:
+        kept[0] = ("1", kept[0][1])
+    return kept
 
 
 def _on_success(success: str, results: list[tuple[str, int]]) -> list[Update]:

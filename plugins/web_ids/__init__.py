@@ -12,9 +12,11 @@ docs/web_ids.md.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from attrs import field, frozen, validators
 
-from parley_core import Baseline, CaseStudy, DecisionKind, Direction, Objective, Service, SystemModel, hookimpl
+from parley_core import Baseline, CaseStudy, PolicyTable, DecisionKind, Direction, Objective, Service, SystemModel, hookimpl
 from parley_plugins.web_ids.generator import KNOWN, MAX_THRESHOLD, STEPS_PER_ROUND, prism_model
 
 _probability = [validators.ge(0.0), validators.le(1.0)]
@@ -100,10 +102,16 @@ def build(options: WebIdsOptions) -> SystemModel:
 
 def _baseline_name(threshold: int) -> str:
     if threshold == 0:
-        return "always-scan"
+        return "scan-always"
     if threshold == MAX_THRESHOLD:
-        return "never-scan"
+        return "scan-never"
     return f"threshold-{threshold}"
+
+
+def plot_policy(system: SystemModel, table: PolicyTable, path: Path) -> None:
+    from parley_plugins.web_ids.plot import draw_policy
+
+    draw_policy({valuation: values["th"] for valuation, values in table.items()}, path)
 
 
 CASE_STUDY = CaseStudy(
@@ -111,6 +119,7 @@ CASE_STUDY = CaseStudy(
     description="Web server and database under attack: when to scan A, by IDS estimate threshold (the paper's RQ4)",
     options_type=WebIdsOptions,
     build=build,
+    plot_policy=plot_policy,
     quick={"rounds": "6"},
 )
 
