@@ -27,40 +27,43 @@ def _positive(_instance, attribute, value) -> None:
         raise ValueError(f"option {attribute.name} must be positive, got {value}")
 
 
+def _option(default, text: str, validator=None):
+    return field(default=default, validator=validator, metadata={"help": text})
+
+
+MAS1, MAS5 = PROVIDERS["MAS1"], PROVIDERS["MAS5"]
+
+
 @frozen(kw_only=True)
 class TasOptions:
-    rounds: int = field(default=30, validator=_positive, metadata={"help": "workflow executions the objectives average over"})
-    max_interval: int = field(
-        default=10,
-        validator=_positive,
-        metadata={"help": "largest probing interval (executions); the URC may also choose max_interval+1: never probe"},
+    rounds: int = _option(30, "workflow executions the objectives average over", _positive)
+    max_interval: int = _option(
+        10, "largest probing interval (executions); the URC may also choose max_interval+1: never probe", _positive
     )
-    backup_levels: str = field(
-        default="0.05,0.3,1.0",
-        metadata={
-            "help": "failure rate of the backup (MAS5) per health level, comma-separated, from healthy (the table's 0.05) to worst"
-        },
+    backup_levels: str = _option(
+        f"{MAS5.failure_rate:g},0.3,1.0",
+        "failure rate of the backup (MAS5) per health level, comma-separated, from healthy (the table's) to worst",
     )
-    degrade: float = field(default=0.05, validator=_probability, metadata={"help": "per execution, probability that the backup gets one level worse"})
-    recover: float = field(default=0.1, validator=_probability, metadata={"help": "per execution, probability that the backup gets one level better"})
-    peak_start: float = field(default=0.1, validator=_probability, metadata={"help": "per execution, probability that normal load turns to peak load"})
-    peak_end: float = field(default=0.2, validator=_probability, metadata={"help": "per execution, probability that peak load turns to normal"})
-    primary_failure: float = field(default=0.12, validator=_probability, metadata={"help": "failure rate of the primary provider (MAS1) at normal load"})
-    primary_failure_peak: float = field(default=0.24, validator=_probability, metadata={"help": "failure rate of the primary provider at peak load"})
-    p_vital: float = field(
-        default=0.75,
-        validator=_probability,
-        metadata={"help": "probability that an execution analyses vital parameters, else the panic button raises an alarm (TAS profile: 0.75)"},
+    degrade: float = _option(0.05, "per execution, probability that the backup gets one level worse", _probability)
+    recover: float = _option(0.1, "per execution, probability that the backup gets one level better", _probability)
+    peak_start: float = _option(0.1, "per execution, probability that normal load turns to peak load", _probability)
+    peak_end: float = _option(0.2, "per execution, probability that peak load turns to normal", _probability)
+    primary_failure: float = _option(
+        MAS1.failure_rate, "failure rate of the primary provider (MAS1) at normal load", _probability
     )
-    p_alarm: float = field(default=1 / 3, validator=_probability, metadata={"help": "probability that an analysis asks for an alarm (TAS: 1/3)"})
-    p_drug: float = field(default=1 / 3, validator=_probability, metadata={"help": "probability that an analysis asks for a drug change (TAS: 1/3)"})
-    p_dose: float = field(
-        default=1 / 3, validator=_probability, metadata={"help": "probability that an analysis asks for a dose change (TAS: 1/3); the rest: patient ok"}
+    primary_failure_peak: float = _option(
+        2 * MAS1.failure_rate, "failure rate of the primary provider at peak load (assumed: twice the table's)", _probability
     )
-    probe_cost: float = field(
-        default=PROVIDERS["MAS5"].cost, validator=validators.ge(0.0), metadata={"help": "cost of a probe (a test invocation of the backup)"}
+    p_vital: float = _option(
+        0.75, "probability that an execution analyses vital parameters, else it is a panic-button alarm (TAS: 0.75)", _probability
     )
-    response_time: bool = field(default=False, metadata={"help": "add a third objective: expected response time per execution (ms)"})
+    p_alarm: float = _option(1 / 3, "probability that an analysis asks for an alarm (TAS: 1/3)", _probability)
+    p_drug: float = _option(1 / 3, "probability that an analysis asks for a drug change (TAS: 1/3)", _probability)
+    p_dose: float = _option(
+        1 / 3, "probability that an analysis asks for a dose change (TAS: 1/3); the rest: patient ok", _probability
+    )
+    probe_cost: float = _option(MAS5.cost, "cost of a probe (a test invocation of the backup)", validators.ge(0.0))
+    response_time: bool = _option(False, "add a third objective: expected response time per execution (ms)")
 
 
 def scenario(options: TasOptions) -> Scenario:

@@ -172,7 +172,15 @@ def prism_model(s: Scenario) -> str:
     )
     workflow = Module(
         name="Workflow",
-        variables=[Variable(name="req", low=0, high=len(REQUESTS) - 1, init=NONE, comment=" ".join(f"{i} {r}" for i, r in enumerate(REQUESTS)))],
+        variables=[
+            Variable(
+                name="req",
+                low=0,
+                high=len(REQUESTS) - 1,
+                init=NONE,
+                comment=" ".join(f"{i} {r}" for i, r in enumerate(REQUESTS)),
+            )
+        ],
         commands=[
             Command(
                 action="request",
@@ -195,7 +203,10 @@ def prism_model(s: Scenario) -> str:
             Command(
                 action="alternative",
                 guard=f"req={FAILOVER} & !useBackup",
-                updates=[*_on_success("(1-fAlternative)", results), Update(probability="fAlternative", assignments={"req": FAILED})],
+                updates=[
+                    *_on_success("(1-fAlternative)", results),
+                    Update(probability="fAlternative", assignments={"req": FAILED}),
+                ],
             ),
             Command(action="no_failover", guard=f"req!={FAILOVER}"),
             *(
@@ -343,7 +354,11 @@ def _results(s: Scenario) -> list[tuple[str, int]]:
 
     The last result's probability is written as 1 minus the others, so that each distribution
     sums to exactly 1 (also for Storm's exact, rational engine)."""
-    parts = [("pResultAlarm", ALARM, s.p_alarm), ("(pResultDrug+pResultDose)", DRUG, s.p_drug + s.p_dose), ("(1-pResultAlarm-pResultDrug-pResultDose)", DONE, s.p_ok)]
+    parts = [
+        ("pResultAlarm", ALARM, s.p_alarm),
+        ("(pResultDrug+pResultDose)", DRUG, s.p_drug + s.p_dose),
+        ("(1-pResultAlarm-pResultDrug-pResultDose)", DONE, s.p_ok),
+    ]
     kept = [(expression, value) for expression, value, p in parts if p > 0]
     if len(kept) > 1:
         last = "(1-" + "-".join(expression for expression, _ in kept[:-1]) + ")"

@@ -27,7 +27,10 @@ def draw_policy(s: Scenario, intervals: dict[tuple[int, int], int], path: Path) 
     ax.set_ylim(-0.5, 1.5)
     ax.set_xticks(range(levels))
     ax.set_xticklabels(
-        [f"{level}\n(fails {rate:g}{', use alt.' if not s.uses_backup(level) else ''})" for level, rate in enumerate(s.backup_levels)],
+        [
+            f"{level}\n(fails {rate:g}{'' if s.uses_backup(level) else ', use alt.'})"
+            for level, rate in enumerate(s.backup_levels)
+        ],
         fontsize=8,
     )
     ax.set_yticks([0, 1])

@@ -125,7 +125,10 @@ def uniform(options, c):
     [
         ["rounds=8", "max_interval=4", "response_time=true"],
         ["rounds=12", "max_interval=5", "backup_levels=0.05,0.07,0.4,1", "degrade=0.15", "recover=0.05", "response_time=true"],
-        ["rounds=10", "max_interval=3", "p_vital=0.9", "p_alarm=0.2", "p_drug=0.3", "p_dose=0.1", "peak_start=0.5", "peak_end=0.5", "response_time=true"],
+        [
+            "rounds=10", "max_interval=3", "p_vital=0.9", "p_alarm=0.2", "p_drug=0.3", "p_dose=0.1",
+            "peak_start=0.5", "peak_end=0.5", "response_time=true",
+        ],
         ["rounds=5", "max_interval=2", "p_vital=1", "peak_start=0", "backup_levels=0.05,1", "probe_cost=3", "response_time=true"],
     ],
 )
