@@ -16,7 +16,17 @@ from pathlib import Path
 
 from attrs import field, frozen, validators
 
-from parley_core import Baseline, CaseStudy, PolicyTable, DecisionKind, Direction, Objective, Service, SystemModel, hookimpl
+from parley_core import (
+    Baseline,
+    CaseStudy,
+    DecisionKind,
+    Direction,
+    Objective,
+    PolicyTable,
+    Service,
+    SystemModel,
+    hookimpl,
+)
 from parley_plugins.web_ids.generator import KNOWN, MAX_THRESHOLD, STEPS_PER_ROUND, prism_model
 
 _probability = [validators.ge(0.0), validators.le(1.0)]
@@ -26,20 +36,36 @@ _cost = [validators.ge(0.0)]
 @frozen(kw_only=True)
 class WebIdsOptions:
     rounds: int = field(
-        default=48,
+        default=50,
         validator=validators.ge(1),
         metadata={"help": f"rounds (hours) both objectives look at; a round is {STEPS_PER_ROUND} DTMC steps"},
     )
     start_hour: int = field(
-        default=0, validator=[validators.ge(0), validators.le(23)], metadata={"help": "hour of the day at the start (0..23)"}
+        default=0,
+        validator=[validators.ge(0), validators.le(23)],
+        metadata={"help": "hour of the day at the start (0..23)"},
     )
-    attack_a: float = field(default=0.3, converter=float, validator=_probability, metadata={"help": "probability per round that a clean A is compromised"})
+    attack_a: float = field(
+        default=0.3,
+        converter=float,
+        validator=_probability,
+        metadata={"help": "probability per round that a clean A is compromised"},
+    )
     attack_b: float = field(
-        default=0.3, converter=float, validator=_probability, metadata={"help": "probability per round that B is compromised through a compromised A"}
+        default=0.3,
+        converter=float,
+        validator=_probability,
+        metadata={"help": "probability per round that B is compromised through a compromised A"},
     )
-    stale: float = field(default=0.3, converter=float, validator=_probability, metadata={"help": "probability per round that the IDS's rules are stale"})
+    stale: float = field(
+        default=0.3,
+        converter=float,
+        validator=_probability,
+        metadata={"help": "probability per round that the IDS's rules are stale"},
+    )
     ids_error: float = field(
-        default=1.0, converter=float,
+        default=1.0,
+        converter=float,
         validator=_probability,
         metadata={"help": "weight of the published IDS's errors: 1 the published IDS, 0 a perfect one"},
     )
@@ -48,8 +74,12 @@ class WebIdsOptions:
         validator=[validators.ge(0), validators.le(KNOWN)],
         metadata={"help": f"the controller restores A when the estimate reaches this (0..{KNOWN})"},
     )
-    scan_cost: float = field(default=25.0, converter=float, validator=_cost, metadata={"help": "cost of one scan of A"})
-    breach_cost: float = field(default=500.0, converter=float, validator=_cost, metadata={"help": "cost of a round with B compromised"})
+    scan_cost: float = field(
+        default=25.0, converter=float, validator=_cost, metadata={"help": "cost of one scan of A"}
+    )
+    breach_cost: float = field(
+        default=500.0, converter=float, validator=_cost, metadata={"help": "cost of a round with B compromised"}
+    )
 
 
 def build(options: WebIdsOptions) -> SystemModel:
@@ -93,9 +123,7 @@ def build(options: WebIdsOptions) -> SystemModel:
                 description=f"expected cost of restores and scans within {options.rounds} rounds",
             ),
         ],
-        baselines=[
-            Baseline(name=_baseline_name(k), values={"th": k}) for k in range(0, MAX_THRESHOLD + 1)
-        ],
+        baselines=[Baseline(name=_baseline_name(k), values={"th": k}) for k in range(MAX_THRESHOLD + 1)],
         context=options,
     )
 
