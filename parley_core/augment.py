@@ -79,7 +79,7 @@ def _augment(system: SystemModel, only: list[tuple[int, ...]] | None, form: str)
     if undefined:
         raise ModelError(f"{origin} leaves constants {', '.join(undefined)} undefined; give them values")
 
-    domains = [prism.variable_domain(program, name) for name in system.observation]
+    domains = observation_domains(program, system)
     valuations = tuple(itertools.product(*domains)) if only is None else tuple(only)
     manager = program.expression_manager
 
@@ -115,7 +115,7 @@ def _augment(system: SystemModel, only: list[tuple[int, ...]] | None, form: str)
                 updates = [str(update.substitute(mapping)) for update in command.updates]
                 lines.append(command_line(command.action_name, str(guard), updates))
             replacements[command.global_index] = lines
-        widened = _widen_bounds(module, service_vars, system, manager, origin)
+        widened = widen_bounds(module, service_vars, system, manager, origin)
         if replacements or widened:
             new_modules[module.name] = prism.module_with_commands(module, replacements, widened)
 
@@ -156,7 +156,20 @@ def _valuation_expression(manager, variables, valuation, names, booleans) -> Exp
     return result
 
 
-def _widen_bounds(module, service_vars: dict, system: SystemModel, manager, origin: str) -> dict[str, str]:
+def observation_domains(program, system: SystemModel) -> list[range]:
+    """The values of each observation variable, with bounds that use a service constant
+    widened to its largest value (as :func:`widen_bounds` writes them)."""
+    manager = program.expression_manager
+    highest = {
+        c.expression_variable: manager.integer(s.high)
+        for s in system.services
+        for c in program.constants
+        if c.name == s.constant
+    }
+    return [prism.variable_domain(program, name, overrides=highest) for name in system.observation]
+
+
+def widen_bounds(module, service_vars: dict, system: SystemModel, manager, origin: str) -> dict[str, str]:
     """New declarations for variables whose upper bound uses a service constant: the bound
     becomes the constant's largest value, so a counter can reach whatever a decision allows
     (``step : [0..c]`` with c in 1..10 becomes ``step : [0..10]``). A service constant in a

@@ -45,6 +45,15 @@ EvaluatorOption = Annotated[
         help="quotient: one MDP for all policies, fast; storm: build and check each policy (the reference).",
     ),
 ]
+ConstraintOption = Annotated[
+    list[str] | None,
+    typer.Option("--constraint", metavar="NAME>=BOUND", help="A requirement the policies must meet, e.g. success>=0.8 (repeatable)."),
+]
+DecisionOption = Annotated[
+    list[str],
+    typer.Option("--decision", metavar="NAME=LOW..HIGH[:KIND]", help="A constant that sets when a service runs, and its values (repeatable)."),
+]
+ObserveOption = Annotated[list[str], typer.Option("--observe", metavar="VAR,...", help="Variables the URC may read.")]
 JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON document to stdout and nothing else there.")]
 
 
@@ -86,8 +95,9 @@ class RichReporter:
     def __exit__(self, kind, value, traceback) -> None:
         if kind is None:
             self._finish()
-        else:  # an error: leave nothing behind but its message
+        else:  # an error: leave nothing behind but its message (not even rich's last newline)
             self.progress.live.transient = True
+            self.console.quiet = True
         self.progress.stop()
 
     def _finish(self) -> None:
@@ -209,19 +219,32 @@ def run_command(
     out: Annotated[Path | None, typer.Option(help="Run directory (default: runs/CASE-TIMESTAMP).")] = None,
     force: Annotated[bool, typer.Option(help="Replace the files of an existing --out directory.")] = False,
     evaluator: EvaluatorOption = "quotient",
+    constraint: ConstraintOption = None,
     workers: WorkersOption = None,
 ) -> None:
     """Synthesise a URC: search for Pareto-optimal policies, verify them with Storm, write a run directory."""
-    from parley_core.pipeline import run
-    from parley_core.report import check_output, summary, write_run
     from parley_core.search import SearchSettings
 
-    console = Console()
     out = out or Path("runs") / f"{case}-{time.strftime('%Y%m%d-%H%M%S')}"
+    settings = SearchSettings(population=population, generations=generations, seed=seed, constraints=_constraints(constraint))
+    _synthesise(lambda reporter: _prepare(case, set_, reporter), settings, out, force, evaluator, workers)
+
+
+def _constraints(texts: list[str] | None):
+    from parley_core.search import Constraint
+
+    return tuple(Constraint.parse(t) for t in texts or [])
+
+
+def _synthesise(prepare_with, settings, out: Path, force: bool, evaluator: str, workers: int | None) -> None:
+    """Prepare, search, verify, write and print a run (shared by `run` and `synthesize`)."""
+    from parley_core.pipeline import run
+    from parley_core.report import check_output, summary, write_run
+
+    console = Console()
     check_output(out, force)
-    settings = SearchSettings(population=population, generations=generations, seed=seed)
     with RichReporter(_stderr()) as reporter:
-        prepared = _prepare(case, set_, reporter)
+        prepared = prepare_with(reporter)
         result = run(prepared, settings, evaluator=evaluator, workers=workers, reporter=reporter)
         reporter.stage("write report")
         write_run(result, out, force=force)
@@ -255,6 +278,79 @@ def run_command(
     console.print(f"wrote {out}/")
     if result.search.interrupted:
         raise typer.Exit(130)
+
+
+@app.command("augment")
+@_user_errors
+def augment_command(
+    model: Annotated[Path, typer.Argument(help="A PRISM DTMC.")],
+    decision: DecisionOption,
+    observe: ObserveOption,
+    out: Annotated[Path | None, typer.Option(help="Write the parametric model here (default: stdout).")] = None,
+    format_: Annotated[str, typer.Option("--format", help="prism (undefined const int), evochecker (evolve int) or paynt (hole).")] = "prism",
+    force: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
+) -> None:
+    """Write the parametric model: one decision constant per service and reachable observation valuation."""
+    from parley_core.augment import FORMATS, augment, export
+    from parley_core.usermodel import system_from_file
+
+    if format_ not in FORMATS:
+        raise OptionError(f"unknown --format {format_!r}; valid: {', '.join(FORMATS)}")
+    if out is not None and out.exists() and not force:
+        raise OptionError(f"output {out} exists; choose another --out or add --force")
+    system = system_from_file(model, decision, observe)
+    family = augment(system, prune=True)
+    text = export(family, format_)
+    total = len(family.valuations) + len(family.left_out)
+    print(
+        f"{len(family.valuations)} of {total} observation valuations of ({', '.join(system.observation)}) consult a service "
+        f"in some reachable state; {len(family.left_out)} left out; {len(family.decisions)} decision constants",
+        file=sys.stderr,
+    )
+    if out is None:
+        sys.stdout.write(text)
+    else:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text)
+        print(f"wrote {out}", file=sys.stderr)
+
+
+@app.command("synthesize")
+@_user_errors
+def synthesize_command(
+    model: Annotated[Path, typer.Argument(help="A PRISM DTMC.")],
+    props: Annotated[Path, typer.Option(help="PCTL properties, each after a '// name: NAME, max|min' comment (or use --maximize/--minimize).")],
+    decision: DecisionOption,
+    observe: ObserveOption,
+    maximize: Annotated[list[str] | None, typer.Option("--maximize", metavar="NAME", help="Maximise this objective.")] = None,
+    minimize: Annotated[list[str] | None, typer.Option("--minimize", metavar="NAME", help="Minimise this objective.")] = None,
+    constraint: ConstraintOption = None,
+    seed: Annotated[int, typer.Option(help="Seed of the search.")] = 1,
+    population: Annotated[int, typer.Option(min=2)] = 100,
+    generations: Annotated[int, typer.Option(min=1)] = 40,
+    out: Annotated[Path | None, typer.Option(help="Run directory (default: runs/MODEL-TIMESTAMP).")] = None,
+    force: Annotated[bool, typer.Option(help="Replace the files of an existing --out directory.")] = False,
+    evaluator: EvaluatorOption = "quotient",
+    workers: WorkersOption = None,
+) -> None:
+    """Synthesise a URC for your own PRISM model: the same pipeline and run directory as `parley run`."""
+    from parley_core.augment import augment
+    from parley_core.pipeline import Prepared
+    from parley_core.search import SearchSettings
+    from parley_core.usermodel import FileOptions, case_study_for, system_from_file
+
+    def prepare_with(reporter):
+        reporter.stage("read model")
+        system = system_from_file(model, decision, observe, props, maximize or [], minimize or [])
+        reporter.stage("augment")
+        family = augment(system, prune=True)
+        if family.left_out:
+            reporter.note(f"{len(family.left_out)} observation valuations never consult a service and are left out")
+        return Prepared(case=case_study_for(system, model), options=FileOptions(model=str(model)), system=system, family=family)
+
+    settings = SearchSettings(population=population, generations=generations, seed=seed, constraints=_constraints(constraint))
+    out = out or Path("runs") / f"{model.stem}-{time.strftime('%Y%m%d-%H%M%S')}"
+    _synthesise(prepare_with, settings, out, force, evaluator, workers)
 
 
 def _read_or_constant(family, policies: Path | None, constant: int | None) -> list[Policy]:

@@ -18,7 +18,7 @@ from attrs import field, frozen
 from parley_core import metrics
 from parley_core.augment import augment
 from parley_core.casestudy import CaseStudy
-from parley_core.errors import OptionError
+from parley_core.errors import ModelError, OptionError
 from parley_core.evaluate import Evaluator
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.model import Family, Front, Policy, SystemModel
@@ -166,6 +166,8 @@ def run(
     """
     reporter = reporter or NullReporter()
     family = prepared.family
+    if not family.objectives:
+        raise OptionError("the model has no objectives to optimise; give a properties file")
     timings = dict(prepared.timings)
     directions = [o.direction for o in family.objectives]
     reporter.stage(f"{evaluator} evaluator")
@@ -186,13 +188,20 @@ def run(
     finally:
         engine.close()
 
-    mask = metrics.nondominated(result.values, directions)
-    candidates = result.policies[mask]
-    values = result.values[mask]
+    feasible = _meets(result.values, family, settings.constraints)
+    if not feasible.any():
+        best = ", ".join(f"{o.name} {_best(result.values[:, i], o):.4g}" for i, o in enumerate(family.objectives))
+        raise ModelError(
+            f"no evaluated policy meets {' and '.join(map(str, settings.constraints))} (best values seen: {best}); "
+            "relax the constraints or search longer"
+        )
+    mask = metrics.nondominated(result.values[feasible], directions)
+    candidates = result.policies[feasible][mask]
+    values = result.values[feasible][mask]
     with _timed(timings, "verify"):
         verification, values = _verify(family, candidates, values, evaluator, workers, reporter, verify)
-    # Storm's values decide the front: drop anything they show to be dominated.
-    keep = metrics.nondominated(values, directions)
+    # Storm's values decide the front: drop anything they show to be dominated or infeasible.
+    keep = metrics.nondominated(values, directions) & _meets(values, family, settings.constraints)
     candidates, values = candidates[keep], values[keep]
     order = np.lexsort(tuple(values[:, i] for i in reversed(range(values.shape[1]))))
     width = len(str(len(order)))
@@ -229,6 +238,18 @@ def _verify(family, policies, values, evaluator, workers, reporter, verify=True)
         checked = storm.evaluate(policies, progress=reporter.advance)
     difference = float(np.abs(checked - values).max()) if len(values) else 0.0
     return Verification(by="storm", policies=len(policies), max_difference=difference, seconds=time.perf_counter() - start), checked
+
+
+def _meets(values: np.ndarray, family: Family, constraints) -> np.ndarray:
+    names = [o.name for o in family.objectives]
+    ok = np.ones(len(values), dtype=bool)
+    for constraint in constraints:
+        ok &= constraint.violation(values[:, names.index(constraint.objective)]) <= 0
+    return ok
+
+
+def _best(column: np.ndarray, objective) -> float:
+    return float(column.max() if objective.direction.value == "max" else column.min())
 
 
 def _describe(engine: Evaluator) -> dict[str, Any]:

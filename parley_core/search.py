@@ -20,18 +20,48 @@ from pymoo.operators.crossover.sbx import SBX
 from pymoo.operators.mutation.pm import PM
 from pymoo.operators.repair.rounding import RoundingRepair
 
+from parley_core.errors import OptionError
 from parley_core.evaluate import Evaluator
 from parley_core.model import Family
 
 
 @frozen(kw_only=True)
+class Constraint:
+    """A requirement on one objective: ``success>=0.8``, ``cost<=60``."""
+
+    objective: str
+    operator: str = field(validator=validators.in_((">=", "<=")))
+    bound: float
+
+    @classmethod
+    def parse(cls, text: str) -> Constraint:
+        for operator in (">=", "<="):
+            name, sep, bound = text.partition(operator)
+            if sep:
+                try:
+                    return cls(objective=name.strip(), operator=operator, bound=float(bound))
+                except ValueError:
+                    break
+        raise OptionError(f"malformed constraint {text!r}; write OBJECTIVE>=BOUND or OBJECTIVE<=BOUND, e.g. success>=0.8")
+
+    def violation(self, values: np.ndarray) -> np.ndarray:
+        """How far values are from meeting the constraint (<= 0: met), as pymoo wants it."""
+        return self.bound - values if self.operator == ">=" else values - self.bound
+
+    def __str__(self) -> str:
+        return f"{self.objective}{self.operator}{self.bound:g}"
+
+
+@frozen(kw_only=True)
 class SearchSettings:
-    """Budget and seed of a search. ``max_evaluations`` (new policies) stops it early if set."""
+    """Budget and seed of a search. ``max_evaluations`` (new policies) stops it early if set;
+    ``constraints`` make NSGA-II prefer policies that meet them (pymoo's constraint handling)."""
 
     population: int = field(default=100, validator=validators.ge(2))
     generations: int = field(default=40, validator=validators.ge(1))
     seed: int = 1
     max_evaluations: int | None = None
+    constraints: tuple[Constraint, ...] = field(default=(), converter=tuple)
 
 
 @frozen(kw_only=True)
@@ -83,21 +113,33 @@ class Archive:
 class PolicyProblem(Problem):
     """pymoo's view of a family: integer genes in each decision's range, objectives to minimise."""
 
-    def __init__(self, family: Family, archive: Archive, progress: Callable[[int], None] | None = None) -> None:
+    def __init__(
+        self,
+        family: Family,
+        archive: Archive,
+        progress: Callable[[int], None] | None = None,
+        constraints: tuple[Constraint, ...] = (),
+    ) -> None:
         super().__init__(
             n_var=len(family.decisions),
             n_obj=len(family.objectives),
+            n_ieq_constr=len(constraints),
             xl=np.array(family.lows, dtype=float),
             xu=np.array(family.highs, dtype=float),
             vtype=int,
         )
+        names = [o.name for o in family.objectives]
+        self.constraints = [(names.index(c.objective), c) for c in constraints]
         self.archive = archive
         self.signs = np.array([o.direction.sign for o in family.objectives])
         self.progress = progress
 
     def _evaluate(self, x, out, *args, **kwargs) -> None:
         policies = np.rint(np.asarray(x, dtype=float)).astype(np.int64)
-        out["F"] = self.archive.evaluate(policies, progress=self.progress) * self.signs
+        values = self.archive.evaluate(policies, progress=self.progress)
+        out["F"] = values * self.signs
+        if self.constraints:
+            out["G"] = np.column_stack([c.violation(values[:, i]) for i, c in self.constraints])
 
 
 @frozen(kw_only=True)
@@ -136,7 +178,11 @@ def search(
     evaluated again and belong to the result.
     """
     archive = archive if archive is not None else Archive(evaluator, len(family.decisions), len(family.objectives))
-    problem = PolicyProblem(family, archive, progress=on_evaluation)
+    names = [o.name for o in family.objectives]
+    for constraint in settings.constraints:
+        if constraint.objective not in names:
+            raise OptionError(f"constraint {constraint}: no objective {constraint.objective!r}; objectives: {', '.join(names)}")
+    problem = PolicyProblem(family, archive, progress=on_evaluation, constraints=settings.constraints)
     algorithm = NSGA2(
         pop_size=settings.population,
         sampling=initial_population(family, settings),

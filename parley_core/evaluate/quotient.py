@@ -35,6 +35,7 @@ import stormpy.io as storm_io
 from attrs import field, frozen
 from scipy.sparse import csgraph
 
+from parley_core.augment import observation_domains, widen_bounds
 from parley_core.errors import ModelError
 from parley_core.evaluate import Progress, kernels
 from parley_core.evaluate.storm import StormEvaluator
@@ -115,8 +116,9 @@ def quotient_program(family: Family) -> tuple[str, dict[int, tuple[tuple[int, in
                 lines.append(command_line(command.action_name, str(guard), updates))
                 tags.append(tuple((positions[name], v) for name, v in zip(used, values)))
             replacements[command.global_index] = lines
-        if replacements:
-            modules[module.name] = prism.module_with_commands(module, replacements)
+        widened = widen_bounds(module, constants, system, manager, f"the {system.name} model")
+        if replacements or widened:
+            modules[module.name] = prism.module_with_commands(module, replacements, widened)
         tags_in_order[module.name] = tags
     text = prism.splice(program, modules=modules, constants={name: "" for name in constants}, model_type="mdp")
     text += "\n" + _observation_rewards(family, program).render() + "\n"
@@ -135,8 +137,9 @@ def _observation_rewards(family: Family, program) -> Rewards:
     """A state reward that is each state's observation valuation's position in ``family.valuations`` order."""
     terms = []
     stride = 1
+    domains = dict(zip(family.system.observation, observation_domains(program, family.system)))
     for name in reversed(family.system.observation):
-        domain = prism.variable_domain(program, name)
+        domain = domains[name]
         if prism.is_boolean(program, name):
             value = f"({name} ? 1 : 0)"
         else:
@@ -200,8 +203,7 @@ def _build_mdp(family: Family, properties_text: list[str]):
 
 
 def _full_valuations(family: Family, program) -> list[tuple[int, ...]]:
-    domains = [prism.variable_domain(program, name) for name in family.system.observation]
-    return list(itertools.product(*domains))
+    return list(itertools.product(*observation_domains(program, family.system)))
 
 
 def consulted_valuations(family: Family) -> set[tuple[int, ...]]:

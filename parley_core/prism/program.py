@@ -91,17 +91,29 @@ def find_variable(program: PrismProgram, name: str):
     return None
 
 
-def variable_domain(program: PrismProgram, name: str, *, origin: str = "observation variable") -> range:
-    """All values of a bounded integer or boolean variable (booleans as 0 and 1)."""
+def variable_domain(
+    program: PrismProgram, name: str, *, origin: str = "observation variable", overrides: Mapping | None = None
+) -> range:
+    """All values of a bounded integer or boolean variable (booleans as 0 and 1).
+
+    ``overrides`` maps constants (expression variables) to expressions that replace them in
+    the bounds before the program's own definitions do (augmentation widens bounds that use
+    a service constant to the constant's largest value)."""
     variable = find_variable(program, name)
     if variable is None:
         known = sorted(v.name for v in all_variables(program))
         raise ModelError(f"{origin} {name!r} is not a variable of the model; variables: {', '.join(known)}")
     if isinstance(variable, PrismBooleanVariable) or not hasattr(variable, "lower_bound_expression"):
         return range(0, 2)
-    variable = find_variable(program.substitute_constants(), name)
+    lower, upper = variable.lower_bound_expression, variable.upper_bound_expression
+    if overrides:
+        lower, upper = lower.substitute(dict(overrides)), upper.substitute(dict(overrides))
+    definitions = {
+        c.expression_variable: c.definition for c in program.substitute_constants().constants if c.defined
+    }
     bounds = []
-    for expression in (variable.lower_bound_expression, variable.upper_bound_expression):
+    for expression in (lower, upper):
+        expression = expression.substitute(definitions)
         # evaluate_as_int crashes the process on an expression that still has variables
         if expression.get_variables():
             raise ModelError(

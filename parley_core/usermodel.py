@@ -1,0 +1,189 @@
+"""A user's own PRISM model as a SystemModel: the input of `parley augment` and `parley synthesize`.
+
+- ``--decision NAME=LOW..HIGH[:frequency|threshold]`` names a constant of the model that
+  sets when a service runs, and the values the URC may give it. A constant the model
+  defines (``const int c = 1;``) is accepted; its value becomes a baseline policy.
+- ``--observe VAR,...`` names the variables the URC may read (bounded integers or booleans).
+- Objectives come from a properties file: each property may be preceded by a comment
+  ``// name: NAME, max`` (or ``min``), or by a comment ending in the direction alone
+  (``//Objective, max``, as in the paper's files), or be named PRISM-style
+  (``"NAME": P=? [...]``); unnamed ones are called objective1, objective2, ...
+  ``--maximize NAME`` / ``--minimize NAME`` set or override directions.
+
+Every problem is a ParleyError with one line saying what to do.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from attrs import field, frozen
+
+from parley_core.casestudy import CaseStudy
+from parley_core.errors import ModelError, OptionError, read_text
+from parley_core.model import Baseline, DecisionKind, Direction, Objective, Service, SystemModel
+from parley_core.prism import program as prism
+
+
+def parse_decision(text: str) -> Service:
+    """``c=1..10`` or ``c=0..5:threshold`` -> a Service (frequency by default)."""
+    name, sep, rest = text.partition("=")
+    name = name.strip()
+    span, _, kind = rest.partition(":")
+    low_text, dots, high_text = span.partition("..")
+    if not sep or not name or not dots:
+        raise OptionError(f"malformed --decision {text!r}; write NAME=LOW..HIGH[:frequency|threshold], e.g. c=1..10")
+    try:
+        low, high = int(low_text), int(high_text)
+    except ValueError:
+        raise OptionError(f"--decision {text!r}: LOW and HIGH must be integers, e.g. c=1..10") from None
+    if high < low:
+        raise OptionError(f"--decision {text!r}: the range {low}..{high} is empty; give LOW <= HIGH")
+    kind = kind.strip() or "frequency"
+    if kind not in ("frequency", "threshold"):
+        raise OptionError(f"--decision {text!r}: kind {kind!r} is neither frequency nor threshold")
+    if not name.isidentifier():
+        raise OptionError(f"--decision {text!r}: {name!r} is not a constant name")
+    return Service(name=name, constant=name, kind=DecisionKind(kind), low=low, high=high)
+
+
+def parse_observation(items: Sequence[str]) -> tuple[str, ...]:
+    names = tuple(n.strip() for item in items for n in item.split(",") if n.strip())
+    if not names:
+        raise OptionError("give the variables the URC may read with --observe VAR,... (e.g. --observe xhat,yhat)")
+    duplicates = sorted({n for n in names if names.count(n) > 1})
+    if duplicates:
+        raise OptionError(f"--observe names {', '.join(duplicates)} twice; give each variable once")
+    return names
+
+
+def read_objectives(path: Path, maximize: Sequence[str] = (), minimize: Sequence[str] = ()) -> list[Objective]:
+    """Objectives from a properties file (see the module docstring)."""
+    text = read_text(path, "properties file", "give a file of PCTL properties (one per line)", OptionError)
+    pending: tuple[str, str | None] | None = None
+    found: list[tuple[str, str, str | None]] = []  # name, formula, direction
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line:
+            continue
+        if line.startswith("//"):
+            comment = line[2:].strip()
+            parts = [p.strip() for p in comment.split(",")]
+            if comment.lower().startswith("name:"):
+                parts = [p.strip() for p in comment[5:].split(",")]
+                direction = parts[1].lower() if len(parts) > 1 and parts[1] else None
+                if direction not in (None, "max", "min"):
+                    raise OptionError(f"{path}, line {number}: direction {parts[1]!r} is neither max nor min")
+                pending = (parts[0], direction)
+            elif parts[-1].lower() in ("max", "min"):  # a direction alone, e.g. "//Objective, max"
+                pending = (None, parts[-1].lower())
+            continue
+        name, direction = pending if pending else (None, None)
+        formula = line
+        if line.startswith('"'):
+            label, _, rest = line[1:].partition('"')
+            if rest.lstrip().startswith(":"):
+                name = name or label
+                formula = rest.lstrip()[1:].strip()
+        found.append((name or f"objective{len(found) + 1}", formula.rstrip(";"), direction))
+        pending = None
+    if not found:
+        raise OptionError(f"properties file {path} holds no property; write one PCTL property per line")
+    names = [n for n, _, _ in found]
+    for flag, chosen in (("--maximize", maximize), ("--minimize", minimize)):
+        unknown = [n for n in chosen if n not in names]
+        if unknown:
+            raise OptionError(f"{flag} {unknown[0]}: no objective of that name; objectives: {', '.join(names)}")
+    objectives = []
+    for name, formula, direction in found:
+        if name in maximize and name in minimize:
+            raise OptionError(f"objective {name} is given to both --maximize and --minimize")
+        direction = "max" if name in maximize else "min" if name in minimize else direction
+        if direction is None:
+            raise OptionError(
+                f"objective {name} has no direction; put '// name: {name}, max' (or min) before it, or use --maximize/--minimize {name}"
+            )
+        if not name.isidentifier():
+            raise OptionError(f"objective name {name!r} is not an identifier; use letters, digits and underscores")
+        objectives.append(Objective(name=name, formula=formula, direction=Direction(direction)))
+    return objectives
+
+
+def system_from_file(
+    path: Path,
+    decisions: Sequence[str],
+    observe: Sequence[str],
+    properties: Path | None = None,
+    maximize: Sequence[str] = (),
+    minimize: Sequence[str] = (),
+) -> SystemModel:
+    """The SystemModel of a user's PRISM file; checks everything a user can get wrong."""
+    text = read_text(path, "model file", "give the path of a PRISM model (.prism)", OptionError)
+    if not decisions:
+        raise OptionError("give at least one --decision NAME=LOW..HIGH (the constant that sets when a service runs)")
+    services = [parse_decision(d) for d in decisions]
+    observation = parse_observation(observe)
+    program = prism.parse_program(text, origin=f"model {path}")
+    constants = {c.name: c for c in program.constants}
+    baselines = []
+    for service in services:
+        if service.constant not in constants:
+            names = ", ".join(sorted(constants)) or "none"
+            raise ModelError(f"--decision {service.constant}: the model declares no constant of that name; constants: {names}")
+        constant = constants[service.constant]
+        if not constant.type.is_integer:
+            raise ModelError(f"--decision {service.constant}: the constant is not an int; decisions are integers")
+        if constant.defined:
+            value = constant.definition.evaluate_as_int() if not constant.definition.get_variables() else None
+            if value is not None and service.low <= value <= service.high and len(services) == 1:
+                baselines.append(Baseline(name=f"model ({service.constant}={value})", values={service.constant: value}))
+    for name in observation:
+        prism.variable_domain(program, name, origin="--observe variable")  # exists and is bounded
+    objectives = read_objectives(properties, maximize, minimize) if properties is not None else []
+    if objectives:
+        prism.parse_properties([o.formula for o in objectives], program, origin="property")
+    if len(services) == 1:
+        service = services[0]
+        baselines += [Baseline(name=f"{service.constant}={v}", values={service.constant: v}) for v in service.values]
+    else:
+        lows = {s.constant: s.low for s in services}
+        for service in services:
+            baselines += [
+                Baseline(name=f"{service.constant}={v}", values={**lows, service.constant: v}) for v in service.values
+            ]
+    seen, unique = set(), []
+    for baseline in baselines:  # the model's own value may repeat a fixed one
+        key = tuple(sorted(baseline.values.items()))
+        if key not in seen:
+            seen.add(key)
+            unique.append(baseline)
+    return SystemModel(
+        name=_identifier(path.stem),
+        prism=text,
+        services=services,
+        observation=observation,
+        objectives=objectives,
+        baselines=unique,
+        description=f"user model {path}",
+    )
+
+
+def _identifier(stem: str) -> str:
+    name = "".join(ch if ch.isalnum() else "_" for ch in stem.lower()) or "model"
+    return name if name[0].isalpha() else f"m_{name}"
+
+
+@frozen(kw_only=True)
+class FileOptions:
+    model: str = field(default="", metadata={"help": "the PRISM file"})
+
+
+def case_study_for(system: SystemModel, path: Path) -> CaseStudy:
+    """A one-off CaseStudy around a user's model, so that runs report like plugin runs."""
+    return CaseStudy(
+        name=system.name,
+        description=f"user model {path}",
+        options_type=FileOptions,
+        build=lambda _options: system,
+    )
