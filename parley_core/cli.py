@@ -353,6 +353,85 @@ def synthesize_command(
     _synthesise(prepare_with, settings, out, force, evaluator, workers)
 
 
+@app.command("select")
+@_user_errors
+def select_command(
+    run_dir: Annotated[Path, typer.Argument(help="A run directory of `parley run` or `parley synthesize`.")],
+    constraint: ConstraintOption = None,
+    prefer: Annotated[str | None, typer.Option(help="Take the best policy on this objective (among those meeting the constraints).")] = None,
+    knee: Annotated[bool, typer.Option("--knee", help="Take the knee point (the default when --prefer is not given).")] = False,
+    out: Annotated[Path | None, typer.Option(help="Controller file to write (default: RUN_DIR/controller.json).")] = None,
+    json_: JsonOption = False,
+) -> None:
+    """Pick one policy from a front (best on an objective under constraints, or the knee) and write it as a controller."""
+    from parley_core import rundir
+    from parley_core.selection import controller, select
+
+    if prefer is not None and knee:
+        raise OptionError("give --prefer NAME or --knee, not both")
+    run = rundir.load(run_dir)
+    chosen = select(run, _constraints(constraint), prefer)
+    urc = controller(run, chosen)
+    target = out or run_dir / "controller.json"
+    urc.save(target)
+    if json_:
+        print(json.dumps({"policy": chosen, "values": dict(urc.values), "controller": str(target)}, indent=2))
+    else:
+        values = ", ".join(f"{k} {_fmt(v)}" for k, v in urc.values.items())
+        Console().print(f"selected {chosen} ({values}); wrote the controller to {target}")
+
+
+@app.command("simulate")
+@_user_errors
+def simulate_command(
+    target: Annotated[Path, typer.Argument(help="A run directory (of `parley run` or `parley synthesize`).")],
+    policy: Annotated[Path, typer.Option(help="A controller file (`parley select`) or a policies CSV holding one policy.")],
+    episodes: Annotated[int, typer.Option(min=1, help="Simulated runs.")] = 10_000,
+    seed: Annotated[int, typer.Option(help="Seed of Storm's simulator.")] = 1,
+    max_steps: Annotated[int, typer.Option(min=1, help="Longest episode for unbounded reachability.")] = 10_000,
+    json_: JsonOption = False,
+) -> None:
+    """Simulate a policy with Storm's simulator; print empirical values with 99% intervals next to the model-checked ones."""
+    from parley_core import rundir
+    from parley_core.simulate import simulate
+    from parley_core.usermodel import family_of_run
+
+    run = rundir.load(target)
+    family = family_of_run(run)
+    values = _policy_values(policy, run, family)
+    results = simulate(family, values, episodes, seed, max_steps)
+    if json_:
+        print(json.dumps([r if isinstance(r, str) else {
+            "objective": r.objective, "kind": r.kind, "simulated": r.mean, "interval99": [r.low, r.high],
+            "model_checked": r.checked, "episodes": r.episodes, "cut": r.cut, "within_interval": bool(r.agrees),
+        } for r in results], indent=2))
+        return
+    table = Table(title=f"{episodes} episodes of Storm's simulator (seed {seed}) against model checking", title_justify="left")
+    for column in ("objective", "simulated", "99% interval", "model-checked", "within"):
+        table.add_column(column, justify="right" if column != "objective" else "left")
+    for r in results:
+        if isinstance(r, str):
+            table.add_row(r, "", "", "", "")
+        else:
+            table.add_row(r.objective, _fmt(r.mean), f"{_fmt(r.low)} .. {_fmt(r.high)}", _fmt(r.checked), "yes" if r.agrees else "NO")
+    Console().print(table)
+
+
+def _policy_values(path: Path, run, family) -> list[int]:
+    from parley_core.policies import read_policies
+    from parley_core.runtime import URC
+
+    if path.suffix == ".json":
+        urc = URC.load(path)
+        if tuple(urc.observation) != tuple(family.system.observation):
+            raise OptionError(f"controller {path} reads {', '.join(urc.observation)}, the run {', '.join(family.system.observation)}")
+        return [urc.decide(d.valuation)[d.service.constant] for d in family.decisions]
+    policies = read_policies(path, family)
+    if len(policies) != 1:
+        raise OptionError(f"policies file {path} holds {len(policies)} policies; give a file with one (or a controller file)")
+    return list(policies[0].values)
+
+
 def _read_or_constant(family, policies: Path | None, constant: int | None) -> list[Policy]:
     from parley_core.policies import read_policies
 

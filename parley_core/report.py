@@ -49,6 +49,16 @@ def front_csv(front: Front, extra: dict[str, list[Any]] | None = None) -> str:
     return out.getvalue()
 
 
+def decisions_csv(family) -> str:
+    """Each decision constant of model.prism with its service constant and observation valuation."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["decision", "constant", *family.system.observation])
+    for decision in family.decisions:
+        writer.writerow([decision.name, decision.service.constant, *decision.valuation])
+    return out.getvalue()
+
+
 def versions() -> dict[str, str]:
     result = {"python": platform.python_version()}
     for package in ("parley", "stormpy", "pymoo", "moocore", "numpy"):
@@ -91,10 +101,12 @@ def summary(result: RunResult) -> dict[str, Any]:
             "decisions": len(family.decisions),
             "valuations": len(family.valuations),
             "valuations_left_out": len(family.left_out),
+            "left_out": [list(v) for v in family.left_out],
         },
         "objectives": [
             {"name": o.name, "direction": o.direction.value, "formula": o.formula} for o in family.objectives
         ],
+        "constraints": [str(c) for c in result.settings.constraints],
         "front": {"size": len(result.front), "hypervolume": hv_front, "spread": result.spread(result.front)},
         "baseline": {"size": len(result.baseline), "hypervolume": hv_base, "spread": result.spread(result.baseline)},
         "hypervolume_reference": list(result.reference),
@@ -146,6 +158,7 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path
         (staging / "properties.pctl").write_text(family.properties_text())
         (staging / "front.csv").write_text(front_csv(result.front))
         (staging / "policies.csv").write_text(policy_files.wide_csv(family, result.front.policies))
+        (staging / "decisions.csv").write_text(decisions_csv(family))
         constants = [s.constant for s in family.system.services]
         baseline_columns = {c: [b.values[c] for b in family.system.baselines] for c in constants}
         (staging / "baseline.csv").write_text(front_csv(result.baseline, baseline_columns))

@@ -187,3 +187,29 @@ def case_study_for(system: SystemModel, path: Path) -> CaseStudy:
         options_type=FileOptions,
         build=lambda _options: system,
     )
+
+
+def family_of_run(run) -> "Family":
+    """The family of a run directory, rebuilt from its model.prism and decisions.csv (no plugin needed)."""
+    from parley_core.model import Decision, Family
+
+    model = run.summary["model"]
+    services = {
+        s["constant"]: Service(name=s["name"], constant=s["constant"], kind=DecisionKind(s["kind"]), low=s["range"][0], high=s["range"][1])
+        for s in model["services"]
+    }
+    decisions = tuple(Decision(name=name, service=services[constant], valuation=valuation) for name, constant, valuation in run.decisions)
+    objectives = [Objective(name=o["name"], formula=o["formula"], direction=Direction(o["direction"])) for o in run.objectives]
+    system = SystemModel(
+        name=_identifier(run.summary.get("case_study", "run")),
+        prism=run.model,  # the augmented model stands in for the original; only decisions are read from it
+        services=list(services.values()),
+        observation=model["observation"],
+        objectives=objectives,
+        description=f"run {run.path}",
+    )
+    valuations = tuple(dict.fromkeys(d.valuation for d in decisions))
+    return Family(
+        system=system, prism=run.model, decisions=decisions, valuations=valuations,
+        left_out=tuple(tuple(v) for v in model.get("left_out", [])),
+    )

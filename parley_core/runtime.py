@@ -1,0 +1,125 @@
+"""The runtime URC: a synthesised policy as a controller file, and ``decide(observation)``.
+
+A controller file (JSON, written by ``parley select``) holds the observation variables,
+the services, one decision per observation valuation the policy was synthesised for, the
+valuations left out because no service is ever consulted there, and the policy's
+Storm-checked objective values. ``URC.decide`` refuses observations outside that domain
+with a clear error instead of guessing a default.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from attrs import field, frozen
+
+from parley_core.errors import ParleyError, PolicyError, read_text
+
+FORMAT = "parley-urc/1"
+
+
+class ObservationError(ParleyError):
+    """An observation the controller was not synthesised for."""
+
+
+@frozen(kw_only=True)
+class URC:
+    """An uncertainty reduction controller: observation valuation -> service decisions."""
+
+    observation: tuple[str, ...] = field(converter=tuple)
+    services: tuple[dict[str, Any], ...] = field(converter=tuple)
+    table: Mapping[tuple[int, ...], Mapping[str, int]] = field(converter=dict)
+    left_out: frozenset[tuple[int, ...]] = field(factory=frozenset, converter=frozenset)
+    policy: str = ""
+    values: Mapping[str, float] = field(factory=dict, converter=dict)
+    source: str = ""
+
+    def decide(self, observation: Mapping[str, int] | Sequence[int]) -> dict[str, int]:
+        """The decision (value per service constant) for an observation: a mapping of the
+        observation variables, or their values in the order of ``self.observation``."""
+        valuation = self._valuation(observation)
+        if valuation in self.table:
+            return dict(self.table[valuation])
+        shown = ", ".join(f"{n}={v}" for n, v in zip(self.observation, valuation))
+        if valuation in self.left_out:
+            raise ObservationError(
+                f"observation {shown}: the model says no service is ever consulted there, so the controller has no "
+                "decision; check the system against the model"
+            )
+        raise ObservationError(
+            f"observation {shown} is outside the domain the controller was synthesised for; "
+            "check the sensor or synthesise for a larger domain"
+        )
+
+    def _valuation(self, observation) -> tuple[int, ...]:
+        if isinstance(observation, Mapping):
+            missing = [n for n in self.observation if n not in observation]
+            extra = [n for n in observation if n not in self.observation]
+            if missing or extra:
+                raise ObservationError(
+                    f"observation must give exactly {', '.join(self.observation)}"
+                    + (f"; missing {', '.join(missing)}" if missing else "")
+                    + (f"; unknown {', '.join(map(str, extra))}" if extra else "")
+                )
+            values = [observation[n] for n in self.observation]
+        else:
+            values = list(observation)
+            if len(values) != len(self.observation):
+                raise ObservationError(f"observation must give {len(self.observation)} values ({', '.join(self.observation)})")
+        result = []
+        for name, value in zip(self.observation, values):
+            if isinstance(value, bool):
+                value = int(value)
+            if not isinstance(value, int) and not (isinstance(value, float) and value.is_integer()):
+                raise ObservationError(f"observation {name}={value!r} is not an integer")
+            result.append(int(value))
+        return tuple(result)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "format": FORMAT,
+            "policy": self.policy,
+            "values": dict(self.values),
+            "observation": list(self.observation),
+            "services": list(self.services),
+            "decisions": [{"observation": list(v), "decision": dict(d)} for v, d in sorted(self.table.items())],
+            "left_out": [list(v) for v in sorted(self.left_out)],
+            "source": self.source,
+        }
+
+    def save(self, path: Path) -> None:
+        path.write_text(json.dumps(self.to_json(), indent=2) + "\n")
+
+    @classmethod
+    def load(cls, path: Path) -> URC:
+        text = read_text(path, "controller file", "give a file written by `parley select`", PolicyError)
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise PolicyError(f"controller file {path} is not JSON ({exc.msg}, line {exc.lineno}); give a file written by `parley select`") from None
+        if not isinstance(data, dict) or data.get("format") != FORMAT:
+            raise PolicyError(f"controller file {path} is not a parley controller ({FORMAT}); give a file written by `parley select`")
+        try:
+            observation = [str(n) for n in data["observation"]]
+            constants = [s["constant"] for s in data["services"]]
+            table = {}
+            for entry in data["decisions"]:
+                valuation = tuple(int(v) for v in entry["observation"])
+                decision = {str(k): int(v) for k, v in entry["decision"].items()}
+                if len(valuation) != len(observation) or sorted(decision) != sorted(constants):
+                    raise ValueError(f"decision {entry} does not fit the observation and services")
+                table[valuation] = decision
+            return cls(
+                observation=observation,
+                services=data["services"],
+                table=table,
+                left_out=[tuple(int(v) for v in row) for row in data.get("left_out", [])],
+                policy=str(data.get("policy", "")),
+                values={str(k): float(v) for k, v in data.get("values", {}).items()},
+                source=str(data.get("source", "")),
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise PolicyError(f"controller file {path} is malformed ({exc}); write it with `parley select`") from None

@@ -1,0 +1,57 @@
+"""Choosing one policy from a front, and making it a controller."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from parley_core import metrics
+from parley_core.errors import OptionError
+from parley_core.rundir import RunDirectory
+from parley_core.runtime import URC
+from parley_core.search import Constraint
+
+
+def select(run: RunDirectory, constraints: Sequence[Constraint] = (), prefer: str | None = None) -> str:
+    """The name of the chosen front policy: among those meeting the constraints, the best
+    on ``prefer`` (ties: the knee of those), or else the knee point."""
+    names = [o["name"] for o in run.objectives]
+    values = np.array([v for _, v in run.front], dtype=float).reshape(-1, len(names))
+    feasible = np.ones(len(values), dtype=bool)
+    for constraint in constraints:
+        if constraint.objective not in names:
+            raise OptionError(f"constraint {constraint}: no objective {constraint.objective!r}; objectives: {', '.join(names)}")
+        feasible &= constraint.violation(values[:, names.index(constraint.objective)]) <= 0
+    if not feasible.any():
+        raise OptionError(
+            f"no policy of the front meets {' and '.join(map(str, constraints))}; relax the constraints"
+        )
+    candidates = np.flatnonzero(feasible)
+    if prefer is not None:
+        if prefer not in names:
+            raise OptionError(f"--prefer {prefer}: no objective of that name; objectives: {', '.join(names)}")
+        column = values[candidates, names.index(prefer)] * run.directions[names.index(prefer)].sign
+        candidates = candidates[column == column.min()]
+    chosen = candidates[metrics.knee(values[candidates], run.directions)] if len(candidates) > 1 else candidates[0]
+    return run.front[int(chosen)][0]
+
+
+def controller(run: RunDirectory, policy: str) -> URC:
+    """The URC of one front policy of a run directory."""
+    if policy not in run.policies:
+        raise OptionError(f"policy {policy!r} is not in {run.path}/policies.csv")
+    table: dict[tuple[int, ...], dict[str, int]] = {}
+    for (_name, constant, valuation), value in zip(run.decisions, run.policies[policy]):
+        table.setdefault(valuation, {})[constant] = value
+    values = dict(run.front)[policy]
+    model = run.summary["model"]
+    return URC(
+        observation=model["observation"],
+        services=model["services"],
+        table=table,
+        left_out=[tuple(v) for v in model.get("left_out", [])],
+        policy=policy,
+        values={o["name"]: v for o, v in zip(run.objectives, values)},
+        source=str(run.path),
+    )

@@ -1,0 +1,150 @@
+"""Simulating a policy with Storm's simulator, next to its model-checked values.
+
+The policy's DTMC (the augmented model with its decision constants set) is built by Storm
+and simulated with Storm's sparse simulator from its initial state. Objectives a simulation
+can estimate:
+
+- ``P=? [F phi]`` and ``P=? [F<=k phi]``: the share of episodes that reach a phi state (within
+  k steps); an episode stops at a sink state or after ``max_steps`` (then it counts as not
+  reaching phi, and the number of such cut episodes is reported);
+- ``R{"r"}=? [C<=k]``: the mean reward of the first k steps.
+
+Each estimate comes with a 99 % confidence interval (normal approximation; Wilson's for
+proportions) and the model-checked value.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import stormpy
+import stormpy.simulator as storm_simulator
+from attrs import frozen
+
+from parley_core.errors import ModelError
+from parley_core.evaluate.storm import StormTask, StormChecker
+from parley_core.model import Family
+from parley_core.prism import program as prism
+
+Z99 = 2.5758293035489004
+
+
+@frozen(kw_only=True)
+class Estimate:
+    objective: str
+    kind: str
+    mean: float
+    low: float
+    high: float
+    checked: float
+    episodes: int
+    cut: int = 0
+
+    @property
+    def agrees(self) -> bool:
+        return bool(self.low <= self.checked <= self.high)
+
+
+def _wilson(successes: int, n: int) -> tuple[float, float]:
+    p = successes / n
+    denominator = 1 + Z99**2 / n
+    centre = (p + Z99**2 / (2 * n)) / denominator
+    half = Z99 * math.sqrt(p * (1 - p) / n + Z99**2 / (4 * n * n)) / denominator
+    return centre - half, centre + half
+
+
+def simulate(family: Family, values: Sequence[int], episodes: int, seed: int, max_steps: int = 10_000) -> list[Estimate | str]:
+    """Estimates per objective (or a sentence saying why one cannot be simulated)."""
+    program = prism.parse_program(family.prism, origin="the augmented model")
+    manager = program.expression_manager
+    by_name = {c.name: c.expression_variable for c in program.constants}
+    instance = program.define_undefined_constants({by_name[n]: manager.integer(int(v)) for n, v in zip(family.names, values)})
+    properties = prism.parse_properties([o.formula for o in family.objectives], instance, origin="objective")
+    options = stormpy.BuilderOptions(properties)
+    try:
+        model = stormpy.build_model(instance, options=options)
+    except RuntimeError as exc:
+        raise ModelError(f"Storm cannot build the policy's model: {prism.storm_message(exc)}") from None
+    checked = StormChecker(StormTask.of(family)).check(values)
+
+    plans = []
+    for objective, prop, value in zip(family.objectives, properties, checked):
+        formula = prop.get_raw_formula()
+        sub = formula.subformula
+        kind = type(sub).__name__
+        if formula.is_probability_operator_formula and kind in ("EventuallyFormula", "BoundedUntilFormula"):
+            target = sub.subformula if kind == "EventuallyFormula" else sub.right_subformula
+            if kind == "BoundedUntilFormula" and (sub.has_lower_bound or type(sub.left_subformula).__name__ != "BooleanLiteralFormula"):
+                plans.append(f"{objective.name}: only F and F<=k probabilities can be simulated")
+                continue
+            steps = sub.upper_bound_expression.evaluate_as_int() if kind == "BoundedUntilFormula" else None
+            mask = np.zeros(model.nr_states, dtype=bool)
+            mask[np.asarray(stormpy.model_checking(model, target).get_truth_values_vector(), dtype=np.int64)] = True
+            plans.append(("reach", objective.name, mask, steps, value))
+        elif formula.is_reward_operator_formula and kind == "CumulativeRewardFormula" and str(sub).startswith("C<=") and str(sub)[3:].isdigit():
+            name = formula.reward_name if formula.has_reward_model_name() else list(model.reward_models)[0]
+            plans.append(("reward", objective.name, list(model.reward_models).index(name), int(str(sub)[3:]), value))
+        else:
+            plans.append(f"{objective.name}: {objective.formula} cannot be simulated (F, F<=k and C<=k can)")
+
+    engine = storm_simulator.developer.DiscreteTimeSparseModelSimulator(model)
+    engine.set_seed(seed)
+    sinks = {}
+    active = [p for p in plans if not isinstance(p, str)]
+    horizon = max([max_steps if p[0] == "reach" and p[3] is None else p[3] for p in active] or [0])
+    hits = np.zeros(len(active), dtype=np.int64)
+    sums = np.zeros(len(active))
+    squares = np.zeros(len(active))
+    cut = np.zeros(len(active), dtype=np.int64)
+    for _ in range(episodes):
+        engine.reset_to_initial()
+        reached = [False] * len(active)
+        total = [0.0] * len(active)
+        state = engine.get_current_state()
+        step = 0
+        while True:
+            for i, plan in enumerate(active):
+                if plan[0] == "reach" and not reached[i] and plan[2][state] and (plan[3] is None or step <= plan[3]):
+                    reached[i] = True
+            if step == horizon:
+                for i, plan in enumerate(active):
+                    if plan[0] == "reach" and plan[3] is None and not reached[i]:
+                        cut[i] += 1
+                break
+            sink = sinks.get(state)
+            if sink is None:
+                sink = sinks[state] = model.is_sink_state(state)
+            engine.step(0)
+            rewards = engine.get_last_rewards()
+            for i, plan in enumerate(active):
+                if plan[0] == "reward" and step < plan[3]:
+                    # a sink earns the same reward at every remaining step
+                    total[i] += rewards[plan[2]] * (plan[3] - step if sink else 1)
+            if sink:  # nothing changes any more
+                break
+            state = engine.get_current_state()
+            step += 1
+        for i, plan in enumerate(active):
+            if plan[0] == "reach":
+                hits[i] += reached[i]
+            else:
+                sums[i] += total[i]
+                squares[i] += total[i] * total[i]
+
+    results: list[Estimate | str] = []
+    for plan in plans:
+        if isinstance(plan, str):
+            results.append(plan)
+            continue
+        i = active.index(plan)
+        if plan[0] == "reach":
+            low, high = _wilson(int(hits[i]), episodes)
+            results.append(Estimate(objective=plan[1], kind="probability", mean=hits[i] / episodes, low=low, high=high, checked=plan[4], episodes=episodes, cut=int(cut[i])))
+        else:
+            mean = sums[i] / episodes
+            deviation = math.sqrt(max(squares[i] / episodes - mean * mean, 0.0) * episodes / max(episodes - 1, 1))
+            half = Z99 * deviation / math.sqrt(episodes)
+            results.append(Estimate(objective=plan[1], kind="mean reward", mean=mean, low=mean - half, high=mean + half, checked=plan[4], episodes=episodes))
+    return results
