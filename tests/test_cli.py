@@ -82,7 +82,8 @@ def test_run_writes_the_run_directory_and_is_reproducible(tmp_path):
         assert result.exit_code == 0, result.stderr
     names = {p.name for p in first.iterdir()}
     assert names == {
-        "model.prism", "properties.pctl", "front.csv", "policies.csv", "baseline.csv", "summary.json", "front.png", "policy.png"
+        "model.prism", "properties.pctl", "front.csv", "policies.csv", "decisions.csv", "baseline.csv", "summary.json",
+        "front.png", "policy.png",
     }
     assert (first / "front.csv").read_text() == (second / "front.csv").read_text()
     assert (first / "policies.csv").read_text() == (second / "policies.csv").read_text()
