@@ -187,7 +187,7 @@ def widen_bounds(module, service_vars: dict, system: SystemModel, manager, origi
         if variable.upper_bound_expression.contains_variable(wanted):
             upper = variable.upper_bound_expression.substitute(highest)
             widened[variable.name] = (
-                f"\t{variable.name}: [{variable.lower_bound_expression}..{upper}] init {variable.initial_value_expression};"
+                f"{variable.name}: [{variable.lower_bound_expression}..{upper}] init {variable.initial_value_expression};"
             )
     return widened
 

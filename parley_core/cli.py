@@ -384,21 +384,21 @@ def select_command(
 @app.command("simulate")
 @_user_errors
 def simulate_command(
-    target: Annotated[Path, typer.Argument(help="A run directory (of `parley run` or `parley synthesize`).")],
+    target: Annotated[Path, typer.Argument(help="A run directory (of `parley run` or `parley synthesize`), or your PRISM model with --props.")],
     policy: Annotated[Path, typer.Option(help="A controller file (`parley select`) or a policies CSV holding one policy.")],
+    props: Annotated[
+        Path | None, typer.Option(help="With a PRISM model: the properties to simulate, each after a '// name: NAME, max|min' comment.")
+    ] = None,
     episodes: Annotated[int, typer.Option(min=1, help="Simulated runs.")] = 10_000,
     seed: Annotated[int, typer.Option(help="Seed of Storm's simulator.")] = 1,
     max_steps: Annotated[int, typer.Option(min=1, help="Longest episode for unbounded reachability.")] = 10_000,
     json_: JsonOption = False,
 ) -> None:
     """Simulate a policy with Storm's simulator; print empirical values with 99% intervals next to the model-checked ones."""
-    from parley_core import rundir
     from parley_core.simulate import simulate
-    from parley_core.usermodel import family_of_run
 
-    run = rundir.load(target)
-    family = family_of_run(run)
-    values = _policy_values(policy, run, family)
+    family = _simulated_family(target, policy, props)
+    values = _policy_values(policy, family)
     results = simulate(family, values, episodes, seed, max_steps)
     if json_:
         print(json.dumps([r if isinstance(r, str) else {
@@ -417,14 +417,38 @@ def simulate_command(
     Console().print(table)
 
 
-def _policy_values(path: Path, run, family) -> list[int]:
+def _simulated_family(target: Path, policy: Path, props: Path | None):
+    """The family a simulation runs on: a run directory's, or a user's model augmented
+    with the controller file's services and observation."""
+    from parley_core import rundir
+    from parley_core.augment import augment
+    from parley_core.runtime import URC
+    from parley_core.usermodel import family_of_run, system_from_file
+
+    if target.is_dir():
+        if props is not None:
+            raise OptionError("--props is for a PRISM model; a run directory has its own properties.pctl")
+        return family_of_run(rundir.load(target))
+    if not target.is_file():
+        raise OptionError(f"{target} does not exist; give a run directory or a PRISM model file")
+    if props is None:
+        raise OptionError(f"simulating the model {target} needs --props FILE.pctl (the objectives to estimate)")
+    if policy.suffix != ".json":
+        raise OptionError(f"with a PRISM model, --policy must be a controller file of `parley select` (got {policy})")
+    urc = URC.load(policy)
+    decisions = [f"{s['constant']}={s['range'][0]}..{s['range'][1]}:{s['kind']}" for s in urc.services]
+    system = system_from_file(target, decisions, [",".join(urc.observation)], props)
+    return augment(system, prune=True)
+
+
+def _policy_values(path: Path, family) -> list[int]:
     from parley_core.policies import read_policies
     from parley_core.runtime import URC
 
     if path.suffix == ".json":
         urc = URC.load(path)
         if tuple(urc.observation) != tuple(family.system.observation):
-            raise OptionError(f"controller {path} reads {', '.join(urc.observation)}, the run {', '.join(family.system.observation)}")
+            raise OptionError(f"controller {path} reads {', '.join(urc.observation)}, the model {', '.join(family.system.observation)}")
         return [urc.decide(d.valuation)[d.service.constant] for d in family.decisions]
     policies = read_policies(path, family)
     if len(policies) != 1:

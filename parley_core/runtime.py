@@ -90,11 +90,12 @@ class URC:
             "source": self.source,
         }
 
-    def save(self, path: Path) -> None:
-        path.write_text(json.dumps(self.to_json(), indent=2) + "\n")
+    def save(self, path: Path | str) -> None:
+        Path(path).write_text(json.dumps(self.to_json(), indent=2) + "\n")
 
     @classmethod
-    def load(cls, path: Path) -> URC:
+    def load(cls, path: Path | str) -> URC:
+        path = Path(path)
         text = read_text(path, "controller file", "give a file written by `parley select`", PolicyError)
         try:
             data = json.loads(text)
