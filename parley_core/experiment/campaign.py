@@ -13,6 +13,7 @@ import glob
 import itertools
 import multiprocessing
 import os
+import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -266,7 +267,7 @@ def verify_record(case_name: str, record: RunRecord) -> RunRecord:
     family = augment(case.build(case.options(assignments)))
     policies = np.array(record.front["policies"], dtype=np.int64).reshape(-1, len(family.decisions))
     searched = np.array(record.front["values"], dtype=float).reshape(len(policies), -1)
-    start = __import__("time").perf_counter()
+    start = time.perf_counter()
     with StormEvaluator(family, workers=1) as storm:
         checked = storm.evaluate(policies)
     directions = [Direction(o["direction"]) for o in record.objectives]
@@ -276,7 +277,7 @@ def verify_record(case_name: str, record: RunRecord) -> RunRecord:
         "by": "storm",
         "policies": len(policies),
         "max_difference": float(np.abs(checked - searched).max()) if len(policies) else 0.0,
-        "seconds": __import__("time").perf_counter() - start,
+        "seconds": time.perf_counter() - start,
     }
     return evolve(
         record,
