@@ -71,6 +71,24 @@ def test_every_supported_kind_agrees_with_storm_on_every_policy():
     assert np.isfinite(reference[:, names.index("total_finite")]).all()
 
 
+def test_the_direct_solve_after_the_sweep_limit_agrees_with_storm(monkeypatch):
+    # one sweep is never enough here, so every iterative objective ends in the direct solve,
+    # where states that cannot reach the target must be left out of I - P
+    from parley_core.evaluate import quotient as module
+
+    monkeypatch.setattr(module, "MAX_SWEEPS", 1)
+    kinds = ("reach", "until", "reward_reach", "total_finite")
+    degraded = "P=? [F h=0 & !broken]"  # the broken states (reached after it) never reach it
+    family = augment(breaking_system({"degraded": degraded, **{k: OBJECTIVES[k] for k in kinds}}))
+    policies = all_policies(family)
+    with QuotientEvaluator(family, workers=1) as quotient, StormEvaluator(family, workers=1) as storm:
+        fast, reference = quotient.evaluate(policies), storm.evaluate(policies)
+    finite = np.isfinite(reference)
+    assert (np.isfinite(fast) == finite).all() and finite.sum() > finite.size // 2
+    assert np.allclose(fast[finite], reference[finite], rtol=1e-9, atol=1e-9)
+    assert (fast[:, 0] > 0).all()
+
+
 def test_unsupported_properties_fall_back_to_storm():
     objectives = {"globally": "P=? [G h=1]", "instant": 'R{"cost"}=? [I=5]', "reach": "P=? [F broken]"}
     family = augment(breaking_system(objectives))

@@ -380,10 +380,15 @@ class QuotientSolver:
     def _objective(self, objective, count, indptr, cols, vals, order) -> float:
         if objective.kind == "until":
             left, right = objective.left[order], objective.right[order]
-            can = kernels.backward_reach(count, indptr, cols, right, left)
-            free = can & ~right
+            # Iterating from 0, a state that cannot reach a right state keeps exactly 0 (the
+            # value Storm's prob0 analysis gives it), so the graph analysis is only needed
+            # for the direct solve after a sweep limit, where those states make I - P singular.
             x = np.where(right, 1.0, 0.0)
-            return self._gauss_seidel(count, indptr, cols, vals, free, x, np.zeros(count))
+            if kernels.gauss_seidel(count, indptr, cols, vals, left & ~right, x, np.zeros(count), TOLERANCE, MAX_SWEEPS) >= 0:
+                return float(x[0])
+            can = kernels.backward_reach(count, indptr, cols, right, left)
+            x = np.where(right, 1.0, 0.0)
+            return self._gauss_seidel(count, indptr, cols, vals, can & ~right, x, np.zeros(count))
         if objective.kind == "bounded":
             left, right = objective.left[order], objective.right[order]
             x = np.where(right, 1.0, 0.0)
