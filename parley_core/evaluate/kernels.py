@@ -27,14 +27,15 @@ def _consistent(policy, choice_dec, choice_val, c):
 @njit(cache=True)
 def explore(
     policy, initial, state_choices, choice_branches, targets, probabilities, choice_dec, choice_val,
-    state_rewards, choice_rewards, local_of, order, indptr, cols, vals, rewards_out, levels,
+    state_rewards, choice_rewards, local_of, order, indptr, cols, vals, rewards_out, levels, chosen,
 ):
     """The reachable DTMC of ``policy``; returns (states, entries).
 
     ``local_of`` must hold -1 everywhere on entry and does again on return. ``rewards_out``
     [r, :states] receives each reward structure's state reward plus the mean action reward
     of the consistent choices (nothing in a state without one: Storm drops a deadlock state's
-    rewards); ``levels`` each state's distance (in steps) from the initial one.
+    rewards); ``levels`` each state's distance (in steps) from the initial one. ``chosen`` is
+    work space for the consistent choices of one state (as long as the most choices a state has).
     """
     n_rewards = state_rewards.shape[0]
     order[0] = initial
@@ -49,6 +50,7 @@ def explore(
         k = 0
         for c in range(state_choices[s], state_choices[s + 1]):
             if _consistent(policy, choice_dec, choice_val, c):
+                chosen[k] = c
                 k += 1
         for r in range(n_rewards):
             # Storm gives a deadlock state (made a self-loop) no reward, state rewards included
@@ -59,9 +61,8 @@ def explore(
             nnz += 1
         else:
             w = 1.0 / k
-            for c in range(state_choices[s], state_choices[s + 1]):
-                if not _consistent(policy, choice_dec, choice_val, c):
-                    continue
+            for i in range(k):
+                c = chosen[i]
                 for r in range(n_rewards):
                     rewards_out[r, head] += w * choice_rewards[r, c]
                 for b in range(choice_branches[c], choice_branches[c + 1]):

@@ -360,6 +360,7 @@ class QuotientSolver:
         self.vals = np.empty(max(b, n) + n, dtype=np.float64)
         self.rewards = np.empty((quotient.state_rewards.shape[0], n))
         self.levels = np.empty(n, dtype=np.int64)
+        self.chosen = np.empty(max(1, int(np.diff(quotient.state_choices).max(initial=0))), dtype=np.int64)
         self.last_states = 0
 
     def solve(self, policy: np.ndarray) -> list[float | None]:
@@ -367,7 +368,7 @@ class QuotientSolver:
         count, nnz = kernels.explore(
             np.asarray(policy, dtype=np.int64), q.initial, q.state_choices, q.choice_branches, q.targets,
             q.probabilities, q.choice_dec, q.choice_val, q.state_rewards, q.choice_rewards,
-            self.local_of, self.order, self.indptr, self.cols, self.vals, self.rewards, self.levels,
+            self.local_of, self.order, self.indptr, self.cols, self.vals, self.rewards, self.levels, self.chosen,
         )
         self.last_states = count
         indptr, cols, vals = self.indptr[: count + 1], self.cols[:nnz], self.vals[:nnz]
