@@ -2,14 +2,11 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 
 import pytest
-import stormpy
 
 from parley_core import Baseline, DecisionKind, Direction, Objective, Service, SystemModel
-from parley_core.prism.program import quiet_storm
+from parley_core.testing import storm_values  # noqa: F401  (tests import it from here)
 
 # A server that is healthy (h=1) or degraded (h=0); each round it degrades with probability
 # 0.2 (from healthy) and, unless probed, stays as it is. A probe (every c-th round, counted by
@@ -54,22 +51,3 @@ def toy_system(prism: str = TOY, **changes) -> SystemModel:
 def toy() -> SystemModel:
     return toy_system()
 
-
-def storm_values(prism_text: str, formulas: list[str], constants: dict[str, int] | None = None) -> list[float]:
-    """Check formulas on PRISM text with plain stormpy calls (independent of parley's evaluator)."""
-    quiet_storm()
-    fd, path = tempfile.mkstemp(suffix=".prism")
-    with os.fdopen(fd, "w") as handle:
-        handle.write(prism_text)
-    try:
-        program = stormpy.parse_prism_program(path)
-    finally:
-        os.unlink(path)
-    if constants:
-        manager = program.expression_manager
-        by_name = {c.name: c.expression_variable for c in program.constants}
-        program = program.define_undefined_constants({by_name[k]: manager.integer(v) for k, v in constants.items()})
-    properties = stormpy.parse_properties(";".join(formulas), program)
-    model = stormpy.build_model(program, properties)
-    state = model.initial_states[0]
-    return [stormpy.model_checking(model, p).get_value(state) for p in properties]

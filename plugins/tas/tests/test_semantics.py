@@ -13,17 +13,15 @@ how long the UAC acts on a stale estimate.
 from __future__ import annotations
 
 import itertools
-import os
-import tempfile
 from collections import defaultdict
 
 import numpy as np
 import pytest
-import stormpy
 
 from parley_core.augment import augment
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.plugins import load_registry
+from parley_core.testing import storm_values
 
 CASE = load_registry().get("tas")
 
@@ -86,27 +84,6 @@ def reference(o, policy) -> tuple[float, float, float]:
         distribution = following
     return tuple(totals / o.rounds)
 
-
-def storm_check(prism_text: str, formulas: list[str], constants: dict[str, int], exact: bool = False) -> list[float]:
-    """Plain stormpy: define the constants, build, check each formula at the initial state.
-
-    ``exact`` builds and checks with rational numbers (nested thresholds such as ``P<1``
-    must not be decided by rounding errors)."""
-    fd, path = tempfile.mkstemp(suffix=".prism")
-    with os.fdopen(fd, "w") as handle:
-        handle.write(prism_text)
-    try:
-        program = stormpy.parse_prism_program(path)
-    finally:
-        os.unlink(path)
-    by_name = {c.name: c.expression_variable for c in program.constants}
-    program = program.define_undefined_constants(
-        {by_name[k]: program.expression_manager.integer(v) for k, v in constants.items()}
-    )
-    properties = stormpy.parse_properties(";".join(formulas), program)
-    model = stormpy.build_model[stormpy.Rational](program, properties) if exact else stormpy.build_model(program, properties)
-    state = model.initial_states[0]
-    return [float(stormpy.model_checking(model, p).get_value(state)) for p in properties]
 
 
 def evaluate(options, policies):
@@ -191,7 +168,7 @@ def test_without_drift_the_estimate_is_always_right():
     failures = []
     for row in policies.values():
         constants = dict(zip(family.names, row))
-        stale, failure = storm_check(family.prism, ['P=? [F "stale"]', 'R{"failures"}=? [C<=105]'], constants)
+        stale, failure = storm_values(family.prism, ['P=? [F "stale"]', 'R{"failures"}=? [C<=105]'], constants)
         assert stale == 0.0
         failures.append(failure)
     assert failures == pytest.approx([failures[0]] * 3, rel=1e-12)
@@ -221,7 +198,7 @@ def test_probing_every_k_executions_bounds_how_long_a_changed_backup_goes_unnoti
     def stale_for(n):  # some state from which "stale" may hold for the next n steps (G<=n, as !F<=n !)
         return f'P=? [F P<1 [F<={n} !"stale"]]'
 
-    reach_longest, reach_longer = storm_check(system.prism, [stale_for(longest), stale_for(longest + 1)], {"c": k}, exact=True)
+    reach_longest, reach_longer = storm_values(system.prism, [stale_for(longest), stale_for(longest + 1)], {"c": k}, exact=True)
     assert reach_longest == 1.0
     assert reach_longer == 0.0
 
@@ -230,6 +207,6 @@ def test_probing_every_execution_means_a_fail_over_never_acts_on_a_stale_estimat
     options = CASE.options(["rounds=10", "max_interval=4"])
     system = CASE.build(options)
     formula = 'P=? [F<=70 ("failover" & "stale")]'
-    every_1, every_2, never = (storm_check(system.prism, [formula], {"c": c})[0] for c in (1, 2, 5))
+    every_1, every_2, never = (storm_values(system.prism, [formula], {"c": c})[0] for c in (1, 2, 5))
     assert every_1 == 0.0
     assert 0.0 < every_2 < never
