@@ -683,10 +683,20 @@ def experiment_report(
     out.mkdir(parents=True, exist_ok=True)
     instances = sorted({r.instance for r in records})
     reps = sorted({r.repetition for r in records})
-    verified = {str(r.summary.get("verification", {}).get("by")) for r in records}
+    from parley_core.experiment.campaign import is_verified
+
+    checked = sum(is_verified(r) for r in records)
+    worst = max((r.summary["verification"]["max_difference"] for r in records if is_verified(r)), default=0.0)
+    if checked == len(records):
+        provenance = f"Storm's, every front re-checked (largest difference from the search's values {worst:.1e})"
+    elif checked:
+        provenance = (f"Storm's for {checked} of {len(records)} runs (largest difference {worst:.1e}); the others the "
+                      "search evaluator's (`parley experiment verify` re-checks them)")
+    else:
+        provenance = "the search evaluator's, not re-checked by Storm yet (`parley experiment verify` re-checks them)"
     text = (
         f"# Campaign {chosen} ({case_name})\n\n{len(instances)} instances x {len(reps)} repetitions "
-        f"({len(records)} runs); settings: {settings_record}.\nFront values: {', '.join(sorted(verified))}.\n\n"
+        f"({len(records)} runs); settings: {settings_record}.\nFront values: {provenance}.\n\n"
         "Per requirement setting (bounds), the number of instances where parley is significantly better / worse / "
         "not different from the baseline (Mann-Whitney U at 0.05 on the repetitions' gains against zero; A12 per "
         "instance in table2.csv). HV: hypervolume with the bounds as reference; SP: Deb's spread (lower is better).\n\n"

@@ -6,7 +6,8 @@ points that meet every bound, and measured against the bounds:
 
 - hypervolume with the bounds as reference point (:func:`parley_core.metrics.hypervolume`);
 - Deb's spread, normalised by the setting's box and with the extremes of all fronts of
-  that instance (every repetition and the baseline) as the reference extremes.
+  that instance (every repetition and the baseline) as the reference extremes;
+- the paper's "spread" (:func:`parley_core.metrics.mean_gap`), for comparison with its Table 2.
 
 Per instance and setting, the repetitions' gains over the baseline are tested against zero
 with a two-sided Mann-Whitney U at 0.05 (as the paper does, but pairing every repetition
@@ -54,6 +55,9 @@ class Row:
     spread_verdict: str
     spread_p: float
     spread_a12: float
+    baseline_gap: float = float("nan")
+    gap: tuple[float, ...] = ()
+    gap_verdict: str = ""
     published_hv: tuple[float, ...] = ()
     published_verdict: str = ""
     published_p: float = float("nan")
@@ -79,6 +83,12 @@ def _spread(values: np.ndarray, directions, setting: Setting, ideal: np.ndarray,
     points = in_box(values, directions, setting)
     points = points[metrics.nondominated(points, directions)] if len(points) else points
     return metrics.spread(points, directions, bounds=(ideal, np.array(setting)), extremes=extremes)
+
+
+def _gap(values: np.ndarray, directions, setting: Setting) -> float:
+    points = in_box(values, directions, setting)
+    points = points[metrics.nondominated(points, directions)] if len(points) else points
+    return metrics.mean_gap(points, directions)
 
 
 def published_fronts(directory: Path, instance: str, n_objectives: int) -> list[np.ndarray]:
@@ -118,10 +128,14 @@ def analyse(records: Sequence[RunRecord], settings: Sequence[Setting], published
             hv_test = compare([h - base_hv for h in hv], [0.0] * len(hv))
             # spread: lower is better, so "better" means the gains are below zero
             sp_test = compare([0.0] * len(sp), [s - base_sp for s in sp])
+            base_gap = _gap(baseline, directions, setting)
+            gap = tuple(_gap(f, directions, setting) for f in fronts)
+            gap_test = compare([0.0] * len(gap), [g - base_gap for g in gap])
             row = dict(
                 instance=instance, setting=tuple(setting), baseline_hv=base_hv, hv=hv, hv_verdict=hv_test.verdict,
                 hv_p=hv_test.p_value, hv_a12=hv_test.a12, baseline_spread=base_sp, spread=sp,
                 spread_verdict=sp_test.verdict, spread_p=sp_test.p_value, spread_a12=sp_test.a12,
+                baseline_gap=base_gap, gap=gap, gap_verdict=gap_test.verdict,
             )
             if theirs:
                 their_hv = tuple(metrics.hypervolume(f, directions, setting) for f in theirs)
@@ -138,15 +152,15 @@ def counts(rows: Sequence[Row], setting: Setting, attribute: str) -> tuple[int, 
 
 def table2_markdown(rows: Sequence[Row], settings: Sequence[Setting], names: Sequence[str], published: bool) -> str:
     out = io.StringIO()
-    head = f"| {' | '.join(names)} | HV better/worse/same | SP better/worse/same |"
+    head = f"| {' | '.join(names)} | HV better/worse/same | SP better/worse/same | paper's SP better/worse/same |"
     if published:
         head += " HV vs published better/worse/same | median HV >= published |"
     out.write(head + "\n|" + "---|" * (head.count("|") - 1) + "\n")
-    totals = np.zeros(9 if published else 6, dtype=int)
+    totals = np.zeros(12 if published else 9, dtype=int)
     for setting in settings:
-        hv, sp = counts(rows, setting, "hv_verdict"), counts(rows, setting, "spread_verdict")
-        line = f"| {' | '.join(f'{b:g}' for b in setting)} | {'/'.join(map(str, hv))} | {'/'.join(map(str, sp))} |"
-        values = [*hv, *sp]
+        hv, sp, gap = (counts(rows, setting, f"{k}_verdict") for k in ("hv", "spread", "gap"))
+        line = f"| {' | '.join(f'{b:g}' for b in setting)} | {'/'.join(map(str, hv))} | {'/'.join(map(str, sp))} | {'/'.join(map(str, gap))} |"
+        values = [*hv, *sp, *gap]
         if published:
             pub = counts(rows, setting, "published_verdict")
             selected = [r for r in rows if r.setting == setting and r.published_hv]
@@ -155,9 +169,9 @@ def table2_markdown(rows: Sequence[Row], settings: Sequence[Setting], names: Seq
             values += [*pub]
         totals[: len(values)] += values
         out.write(line + "\n")
-    total = f"| all | {'/'.join(map(str, totals[0:3]))} | {'/'.join(map(str, totals[3:6]))} |"
+    total = "| all |" + "".join(f" {'/'.join(map(str, totals[i:i + 3]))} |" for i in range(0, 9, 3))
     if published:
-        total += f" {'/'.join(map(str, totals[6:9]))} | |"
+        total += f" {'/'.join(map(str, totals[9:12]))} | |"
     out.write(total + "\n")
     return out.getvalue()
 
@@ -168,12 +182,14 @@ def rows_csv(rows: Sequence[Row], names: Sequence[str]) -> str:
     writer.writerow([
         "instance", *(f"bound_{n}" for n in names), "baseline_hv", "median_hv", "hv_verdict", "hv_p", "hv_a12",
         "baseline_spread", "median_spread", "spread_verdict", "spread_p", "spread_a12",
+        "baseline_paper_spread", "median_paper_spread", "paper_spread_verdict",
         "published_median_hv", "published_verdict", "published_p", "published_a12",
     ])
     for r in rows:
         writer.writerow([
             r.instance, *r.setting, r.baseline_hv, float(np.median(r.hv)), r.hv_verdict, r.hv_p, r.hv_a12,
             r.baseline_spread, float(np.median(r.spread)), r.spread_verdict, r.spread_p, r.spread_a12,
+            r.baseline_gap, float(np.median(r.gap)), r.gap_verdict,
             float(np.median(r.published_hv)) if r.published_hv else "", r.published_verdict,
             "" if not r.published_hv else r.published_p, "" if not r.published_hv else r.published_a12,
         ])
