@@ -603,20 +603,27 @@ def experiment_verify(
     store: Annotated[Path, typer.Option(help="SQLite results file of `parley experiment run`.")],
     name: Annotated[str | None, typer.Option(help="Campaign name (default: the store's only campaign).")] = None,
     workers: Annotated[int | None, typer.Option("--workers", "-j", min=1, help="Processes at once (default: one per core).")] = None,
+    repetition: Annotated[
+        list[int] | None,
+        typer.Option("--repetition", min=0, help="Only these repetitions (repeatable), e.g. 0 for a sample of one per instance."),
+    ] = None,
 ) -> None:
     """Re-check with Storm every stored front not yet checked (runs of --no-verify); resumable."""
-    from parley_core.experiment.campaign import verify_stored
+    from parley_core.experiment.campaign import is_verified, verify_stored
     from parley_core.experiment.store import Store
 
     if not store.is_file():
         raise OptionError(f"store {store} does not exist; give the file of `parley experiment run --store`")
+    wanted = set(repetition) if repetition else None
     with Store(store) as results:
         campaign, case_name = _pick_campaign(results, store, name)
-        total = sum(1 for _ in results.runs(campaign))
+        selected = [r for r in results.runs(campaign) if wanted is None or r.repetition in wanted]
         with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), console=_stderr()) as progress:
-            task = progress.add_task(f"verify {campaign}", total=total)
-            progress.update(task, completed=sum(1 for r in results.runs(campaign) if str(r.summary.get("verification", {}).get("by", "")).startswith("storm")))
-            now, before, worst = verify_stored(results, campaign, case_name, workers=workers, on_done=lambda _r: progress.advance(task))
+            task = progress.add_task(f"verify {campaign}", total=len(selected))
+            progress.update(task, completed=sum(is_verified(r) for r in selected))
+            now, before, worst = verify_stored(
+                results, campaign, case_name, workers=workers, repetitions=wanted, on_done=lambda _r: progress.advance(task)
+            )
     Console().print(
         f"campaign {campaign}: {now} fronts re-checked by Storm now, {before} already were; "
         f"largest difference from the stored values {worst:.1e}"

@@ -166,16 +166,19 @@ def test_scheduler_that_cannot_be_reached(tmp_path):
 def test_unverified_fronts_are_verified_later_by_storm(tmp_path):
     from parley_core.experiment.campaign import is_verified, verify_stored
 
-    specs = plan("v", ROBOT, [("seed=1",), ("seed=2",)], ["size=4", "max_interval=3"], 1, Budget(population=6, generations=2, verify=False))
+    specs = plan("v", ROBOT, [("seed=1",), ("seed=2",)], ["size=4", "max_interval=3"], 2, Budget(population=6, generations=2, verify=False))
     with Store(tmp_path / "v.sqlite") as store:
         store.begin_campaign("v", "robot_grid", {})
         execute(specs, store, workers=1)
         before = list(store.runs("v"))
-        assert not any(is_verified(r) for r in before)
+        assert len(before) == 4 and not any(is_verified(r) for r in before)
+        # a sample first: repetition 1 of each instance
+        assert verify_stored(store, "v", "robot_grid", workers=1, repetitions={1})[:2] == (2, 0)
+        assert sorted(r.repetition for r in store.runs("v") if is_verified(r)) == [1, 1]
         now, already, worst = verify_stored(store, "v", "robot_grid", workers=1)
-        assert (now, already) == (2, 0) and worst <= 1e-9
+        assert (now, already) == (2, 2) and worst <= 1e-9
         after = list(store.runs("v"))
         assert all(is_verified(r) for r in after)
         for old, new in zip(before, after):
             assert np.allclose(old.front["values"], new.front["values"], atol=1e-9)
-        assert verify_stored(store, "v", "robot_grid", workers=1)[:2] == (0, 2)
+        assert verify_stored(store, "v", "robot_grid", workers=1)[:2] == (0, 4)

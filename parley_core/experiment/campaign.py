@@ -286,10 +286,12 @@ def verify_record(case_name: str, record: RunRecord) -> RunRecord:
     )
 
 
-def verify_stored(store: Store, campaign: str, case_name: str, *, workers: int | None = None, on_done=None) -> tuple[int, int, float]:
-    """Verify every stored front of a campaign that Storm has not checked yet; returns
-    (verified now, already verified, largest difference)."""
-    records = list(store.runs(campaign))
+def verify_stored(
+    store: Store, campaign: str, case_name: str, *, workers: int | None = None, repetitions: set[int] | None = None, on_done=None
+) -> tuple[int, int, float]:
+    """Verify every stored front of a campaign (of the given repetitions, or all) that Storm
+    has not checked yet; returns (verified now, already verified, largest difference)."""
+    records = [r for r in store.runs(campaign) if repetitions is None or r.repetition in repetitions]
     todo = [r for r in records if not is_verified(r)]
     worst = 0.0
     workers = max(1, workers if workers is not None else (os.cpu_count() or 1))
