@@ -102,6 +102,21 @@ def spread(
     return float((d_f + d_l + np.abs(gaps - mean).sum()) / denominator)
 
 
+def igd_plus(
+    values: np.ndarray, reference: np.ndarray, directions: Sequence[Direction], *, bounds: tuple[np.ndarray, np.ndarray]
+) -> float:
+    """IGD+ (Ishibuchi et al., EMO 2015; moocore's ``igd_plus``) of a front against a
+    reference front, both normalised to [0, 1] by ``bounds`` (ideal, nadir); lower is
+    better, 0 when the front covers the reference. An empty front gives infinity."""
+    points, ref = _as_min(values, directions), _as_min(reference, directions)
+    if len(points) == 0:
+        return float("inf")
+    low, high = _as_min(bounds[0], directions)[0], _as_min(bounds[1], directions)[0]
+    low, high = np.minimum(low, high), np.maximum(low, high)
+    scale = np.where(high - low > 0, high - low, 1.0)
+    return float(moocore.igd_plus((points - low) / scale, ref=(ref - low) / scale))
+
+
 def mean_gap(values: np.ndarray, directions: Sequence[Direction]) -> float:
     """The paper's "spread" (evaluation.py): mean distance between neighbouring points after
     normalising each objective by the front's own range; 1.5 when undefined, as there."""

@@ -86,6 +86,12 @@ def test_report_on_fronts_with_known_hypervolumes():
     # the paper's spread: 1.5 for a single point, the diagonal of the unit square for two
     assert by["better"].baseline_gap == 1.5 and by["better"].gap[0] == pytest.approx(2**0.5)
     assert (by["better"].gap_verdict, by["worse"].gap_verdict) == ("better", "same")
+    # IGD+ against the union's non-dominated points in the box, (0.8, 60) and (0.9, 69.1),
+    # normalised by the box from the ideal (0.9, 10) to the bounds: the baseline misses the
+    # second by 0.1 / 0.2 in success; repetition 9 of "better" holds both points
+    assert by["better"].baseline_igd == pytest.approx(0.25)
+    assert by["better"].igd[9] == pytest.approx(0.0)
+    assert (by["better"].igd_verdict, by["worse"].igd_verdict) == ("better", "worse")
     assert "| 0.7 | 80 | 1/1/0 |" in report.table2_markdown(rows, [(0.7, 80.0)], ["success >=", "cost <="], False)
 
 

@@ -7,7 +7,9 @@ points that meet every bound, and measured against the bounds:
 - hypervolume with the bounds as reference point (:func:`parley_core.metrics.hypervolume`);
 - Deb's spread, normalised by the setting's box and with the extremes of all fronts of
   that instance (every repetition and the baseline) as the reference extremes;
-- the paper's "spread" (:func:`parley_core.metrics.mean_gap`), for comparison with its Table 2.
+- the paper's "spread" (:func:`parley_core.metrics.mean_gap`), for comparison with its Table 2;
+- IGD+ against the non-dominated union of all fronts of the instance inside the box
+  (normalised like the spread): how far a front stays from the best known trade-offs.
 
 Per instance and setting, the repetitions' gains over the baseline are tested against zero
 with a two-sided Mann-Whitney U at 0.05 (as the paper does, but pairing every repetition
@@ -58,6 +60,10 @@ class Row:
     baseline_gap: float = float("nan")
     gap: tuple[float, ...] = ()
     gap_verdict: str = ""
+    baseline_igd: float = float("nan")
+    igd: tuple[float, ...] = ()
+    igd_verdict: str = ""
+    published_igd: tuple[float, ...] = ()
     published_hv: tuple[float, ...] = ()
     published_verdict: str = ""
     published_p: float = float("nan")
@@ -89,6 +95,12 @@ def _gap(values: np.ndarray, directions, setting: Setting) -> float:
     points = in_box(values, directions, setting)
     points = points[metrics.nondominated(points, directions)] if len(points) else points
     return metrics.mean_gap(points, directions)
+
+
+def _igd(values: np.ndarray, directions, setting: Setting, ideal: np.ndarray, reference: np.ndarray) -> float:
+    if len(reference) == 0:
+        return float("nan")
+    return metrics.igd_plus(in_box(values, directions, setting), reference, directions, bounds=(ideal, np.array(setting)))
 
 
 def published_fronts(directory: Path, instance: str, n_objectives: int) -> list[np.ndarray]:
@@ -131,16 +143,21 @@ def analyse(records: Sequence[RunRecord], settings: Sequence[Setting], published
             base_gap = _gap(baseline, directions, setting)
             gap = tuple(_gap(f, directions, setting) for f in fronts)
             gap_test = compare([0.0] * len(gap), [g - base_gap for g in gap])
+            base_igd = _igd(baseline, directions, setting, ideal, box_front)
+            igd = tuple(_igd(f, directions, setting, ideal, box_front) for f in fronts)
+            igd_test = compare([0.0] * len(igd), [i - base_igd for i in igd]) if len(box_front) else None
             row = dict(
                 instance=instance, setting=tuple(setting), baseline_hv=base_hv, hv=hv, hv_verdict=hv_test.verdict,
                 hv_p=hv_test.p_value, hv_a12=hv_test.a12, baseline_spread=base_sp, spread=sp,
                 spread_verdict=sp_test.verdict, spread_p=sp_test.p_value, spread_a12=sp_test.a12,
                 baseline_gap=base_gap, gap=gap, gap_verdict=gap_test.verdict,
+                baseline_igd=base_igd, igd=igd, igd_verdict=igd_test.verdict if igd_test else "same",
             )
             if theirs:
                 their_hv = tuple(metrics.hypervolume(f, directions, setting) for f in theirs)
                 test = compare(hv, their_hv)
                 row.update(published_hv=their_hv, published_verdict=test.verdict, published_p=test.p_value, published_a12=test.a12)
+                row.update(published_igd=tuple(_igd(f, directions, setting, ideal, box_front) for f in theirs))
             rows.append(Row(**row))
     return rows
 
@@ -150,28 +167,32 @@ def counts(rows: Sequence[Row], setting: Setting, attribute: str) -> tuple[int, 
     return verdicts.count("better"), verdicts.count("worse"), verdicts.count("same")
 
 
+VERDICTS = (("hv", "HV"), ("spread", "SP"), ("gap", "paper's SP"), ("igd", "IGD+"))
+"""Table 2's comparisons with the baseline: the verdict attribute's prefix and its column."""
+
+
 def table2_markdown(rows: Sequence[Row], settings: Sequence[Setting], names: Sequence[str], published: bool) -> str:
     out = io.StringIO()
-    head = f"| {' | '.join(names)} | HV better/worse/same | SP better/worse/same | paper's SP better/worse/same |"
+    head = f"| {' | '.join(names)} |" + "".join(f" {label} better/worse/same |" for _, label in VERDICTS)
     if published:
         head += " HV vs published better/worse/same | median HV >= published |"
     out.write(head + "\n|" + "---|" * (head.count("|") - 1) + "\n")
-    totals = np.zeros(12 if published else 9, dtype=int)
+    groups = len(VERDICTS) + (1 if published else 0)
+    totals = np.zeros((groups, 3), dtype=int)
     for setting in settings:
-        hv, sp, gap = (counts(rows, setting, f"{k}_verdict") for k in ("hv", "spread", "gap"))
-        line = f"| {' | '.join(f'{b:g}' for b in setting)} | {'/'.join(map(str, hv))} | {'/'.join(map(str, sp))} | {'/'.join(map(str, gap))} |"
-        values = [*hv, *sp, *gap]
+        found = [counts(rows, setting, f"{key}_verdict") for key, _ in VERDICTS]
         if published:
-            pub = counts(rows, setting, "published_verdict")
+            found.append(counts(rows, setting, "published_verdict"))
+        totals += np.array(found, dtype=int)
+        line = f"| {' | '.join(f'{b:g}' for b in setting)} |" + "".join(f" {'/'.join(map(str, c))} |" for c in found)
+        if published:
             selected = [r for r in rows if r.setting == setting and r.published_hv]
             at_least = sum(np.median(r.hv) >= np.median(r.published_hv) for r in selected)
-            line += f" {'/'.join(map(str, pub))} | {at_least}/{len(selected)} |"
-            values += [*pub]
-        totals[: len(values)] += values
+            line += f" {at_least}/{len(selected)} |"
         out.write(line + "\n")
-    total = "| all |" + "".join(f" {'/'.join(map(str, totals[i:i + 3]))} |" for i in range(0, 9, 3))
+    total = "| all |" + " |" * (len(names) - 1) + "".join(f" {'/'.join(map(str, t))} |" for t in totals)
     if published:
-        total += f" {'/'.join(map(str, totals[9:12]))} | |"
+        total += " |"
     out.write(total + "\n")
     return out.getvalue()
 
@@ -183,6 +204,7 @@ def rows_csv(rows: Sequence[Row], names: Sequence[str]) -> str:
         "instance", *(f"bound_{n}" for n in names), "baseline_hv", "median_hv", "hv_verdict", "hv_p", "hv_a12",
         "baseline_spread", "median_spread", "spread_verdict", "spread_p", "spread_a12",
         "baseline_paper_spread", "median_paper_spread", "paper_spread_verdict",
+        "baseline_igd_plus", "median_igd_plus", "igd_plus_verdict", "published_median_igd_plus",
         "published_median_hv", "published_verdict", "published_p", "published_a12",
     ])
     for r in rows:
@@ -190,6 +212,7 @@ def rows_csv(rows: Sequence[Row], names: Sequence[str]) -> str:
             r.instance, *r.setting, r.baseline_hv, float(np.median(r.hv)), r.hv_verdict, r.hv_p, r.hv_a12,
             r.baseline_spread, float(np.median(r.spread)), r.spread_verdict, r.spread_p, r.spread_a12,
             r.baseline_gap, float(np.median(r.gap)), r.gap_verdict,
+            r.baseline_igd, float(np.median(r.igd)), r.igd_verdict, float(np.median(r.published_igd)) if r.published_igd else "",
             float(np.median(r.published_hv)) if r.published_hv else "", r.published_verdict,
             "" if not r.published_hv else r.published_p, "" if not r.published_hv else r.published_a12,
         ])
