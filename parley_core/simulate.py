@@ -79,7 +79,10 @@ def simulate(family: Family, values: Sequence[int], episodes: int, seed: int, ma
             if kind == "BoundedUntilFormula" and (sub.has_lower_bound or type(sub.left_subformula).__name__ != "BooleanLiteralFormula"):
                 plans.append(f"{objective.name}: only F and F<=k probabilities can be simulated")
                 continue
-            steps = sub.upper_bound_expression.evaluate_as_int() if kind == "BoundedUntilFormula" else None
+            steps = prism.fixed_int(sub.upper_bound_expression) if kind == "BoundedUntilFormula" else None
+            if kind == "BoundedUntilFormula" and steps is None:
+                plans.append(f"{objective.name}: the step bound is not a fixed integer")
+                continue
             mask = np.zeros(model.nr_states, dtype=bool)
             mask[np.asarray(stormpy.model_checking(model, target).get_truth_values_vector(), dtype=np.int64)] = True
             plans.append(("reach", objective.name, mask, steps, value))

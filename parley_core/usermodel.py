@@ -126,6 +126,16 @@ def system_from_file(
     observation = parse_observation(observe)
     program = prism.parse_program(text, origin=f"model {path}")
     constants = {c.name: c for c in program.constants}
+    for constant in program.constants:  # Storm crashes (SIGFPE) simplifying `const int k = 1/0;`
+        if constant.defined and constant.type.is_integer and not constant.definition.get_variables():
+            if prism.fixed_int(constant.definition) is None:
+                raise ModelError(f"constant {constant.name} = {constant.definition} is not a finite integer; fix its definition")
+    crash = prism.build_crashes(program, {s.constant: s.low for s in services})
+    if crash is not None:
+        raise ModelError(
+            f"Storm crashes (signal {crash}) building model {path}, most likely on an integer division by zero "
+            "in a guard, update or probability; fix the expression"
+        )
     baselines = []
     for service in services:
         if service.constant not in constants:
@@ -135,11 +145,21 @@ def system_from_file(
         if not constant.type.is_integer:
             raise ModelError(f"--decision {service.constant}: the constant is not an int; decisions are integers")
         if constant.defined:
-            value = constant.definition.evaluate_as_int() if not constant.definition.get_variables() else None
+            value = prism.fixed_int(constant.definition)
             if value is not None and service.low <= value <= service.high and len(services) == 1:
                 baselines.append(Baseline(name=f"model ({service.constant}={value})", values={service.constant: value}))
     for name in observation:
         prism.variable_domain(program, name, origin="--observe variable")  # exists and is bounded
+    highest = {constants[s.constant].expression_variable: program.expression_manager.integer(s.high) for s in services}
+    definitions = {c.expression_variable: c.definition for c in program.substitute_constants().constants if c.defined}
+    for variable in prism.all_variables(program):  # Storm's builder crashes on a bound like [0..1/0]
+        for expression in (getattr(variable, "lower_bound_expression", None), getattr(variable, "upper_bound_expression", None)):
+            if expression is None:
+                continue
+            closed = expression.substitute(highest).substitute(definitions)
+            if not closed.get_variables() and prism.fixed_int(closed) is None:
+                raise ModelError(f"variable {variable.name} has a bound {expression} that is not a finite integer; fix it")
+
     objectives = read_objectives(properties, maximize, minimize) if properties is not None else []
     if objectives:
         prism.parse_properties([o.formula for o in objectives], program, origin="property")

@@ -318,11 +318,7 @@ def _objective(model, prop, program, reward_names: list[str]) -> Objective | Non
         if kind == "BoundedUntilFormula":
             if sub.has_lower_bound or sub.is_multi_dimensional:
                 return None
-            try:
-                bound = sub.upper_bound_expression
-                steps = bound.evaluate_as_int() if not bound.get_variables() else None
-            except RuntimeError:
-                return None
+            steps = prism.fixed_int(sub.upper_bound_expression)
             left, right = _states(model, sub.left_subformula), _states(model, sub.right_subformula)
             if steps is None or left is None or right is None:
                 return None
