@@ -159,13 +159,7 @@ def _valuation_expression(manager, variables, valuation, names, booleans) -> Exp
 def observation_domains(program, system: SystemModel) -> list[range]:
     """The values of each observation variable, with bounds that use a service constant
     widened to its largest value (as :func:`widen_bounds` writes them)."""
-    manager = program.expression_manager
-    highest = {
-        c.expression_variable: manager.integer(s.high)
-        for s in system.services
-        for c in program.constants
-        if c.name == s.constant
-    }
+    highest = prism.integer_constants(program, {s.constant: s.high for s in system.services})
     return [prism.variable_domain(program, name, overrides=highest) for name in system.observation]
 
 

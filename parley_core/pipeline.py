@@ -22,7 +22,7 @@ from parley_core.errors import ModelError, OptionError
 from parley_core.evaluate import Evaluator
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.model import Family, Front, Policy, SystemModel
-from parley_core.search import Archive, SearchResult, SearchSettings, search
+from parley_core.search import Archive, SearchResult, SearchSettings, meets, search
 
 EVALUATORS = ("quotient", "storm")
 
@@ -188,7 +188,8 @@ def run(
     finally:
         engine.close()
 
-    feasible = _meets(result.values, family, settings.constraints)
+    names = [o.name for o in family.objectives]
+    feasible = meets(result.values, names, settings.constraints)
     if not feasible.any():
         best = ", ".join(f"{o.name} {_best(result.values[:, i], o):.4g}" for i, o in enumerate(family.objectives))
         raise ModelError(
@@ -201,7 +202,7 @@ def run(
     with _timed(timings, "verify"):
         verification, values = _verify(family, candidates, values, evaluator, workers, reporter, verify)
     # Storm's values decide the front: drop anything they show to be dominated or infeasible.
-    keep = metrics.nondominated(values, directions) & _meets(values, family, settings.constraints)
+    keep = metrics.nondominated(values, directions) & meets(values, names, settings.constraints)
     candidates, values = candidates[keep], values[keep]
     order = np.lexsort(tuple(values[:, i] for i in reversed(range(values.shape[1]))))
     width = len(str(len(order)))
@@ -228,24 +229,25 @@ def run(
 
 
 def _verify(family, policies, values, evaluator, workers, reporter, verify=True) -> tuple[Verification, np.ndarray]:
-    start = time.perf_counter()
     if evaluator == "storm":
         return Verification(by="storm (the search's own evaluator)", policies=len(policies), max_difference=0.0, seconds=0.0), values
     if not verify:
         return Verification(by="none (values of the quotient evaluator)", policies=0, max_difference=float("nan"), seconds=0.0), values
+    return check_with_storm(family, policies, values, workers, reporter)
+
+
+def check_with_storm(
+    family: Family, policies: np.ndarray, values: np.ndarray, workers: int | None = None, reporter: Reporter | None = None
+) -> tuple[Verification, np.ndarray]:
+    """Storm's values of ``policies``, and how far they are from ``values`` (the search's)."""
+    reporter = reporter or NullReporter()
+    start = time.perf_counter()
     with StormEvaluator(family, workers=workers) as storm:
         reporter.stage("verify with Storm", len(policies))
         checked = storm.evaluate(policies, progress=reporter.advance)
     difference = float(np.abs(checked - values).max()) if len(values) else 0.0
     return Verification(by="storm", policies=len(policies), max_difference=difference, seconds=time.perf_counter() - start), checked
 
-
-def _meets(values: np.ndarray, family: Family, constraints) -> np.ndarray:
-    names = [o.name for o in family.objectives]
-    ok = np.ones(len(values), dtype=bool)
-    for constraint in constraints:
-        ok &= constraint.violation(values[:, names.index(constraint.objective)]) <= 0
-    return ok
 
 
 def _best(column: np.ndarray, objective) -> float:

@@ -10,7 +10,7 @@ baseline. One seed fixes the run.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from attrs import field, frozen, validators
@@ -44,12 +44,26 @@ class Constraint:
                     break
         raise OptionError(f"malformed constraint {text!r}; write OBJECTIVE>=BOUND or OBJECTIVE<=BOUND, e.g. success>=0.8")
 
+    def column(self, names: Sequence[str]) -> int:
+        """The position of the constrained objective among ``names``; an unknown one is an error."""
+        if self.objective not in names:
+            raise OptionError(f"constraint {self}: no objective {self.objective!r}; objectives: {', '.join(names)}")
+        return list(names).index(self.objective)
+
     def violation(self, values: np.ndarray) -> np.ndarray:
         """How far values are from meeting the constraint (<= 0: met), as pymoo wants it."""
         return self.bound - values if self.operator == ">=" else values - self.bound
 
     def __str__(self) -> str:
         return f"{self.objective}{self.operator}{self.bound:g}"
+
+
+def meets(values: np.ndarray, names: Sequence[str], constraints: Sequence[Constraint]) -> np.ndarray:
+    """Which rows of ``values`` (one column per objective in ``names``) meet every constraint."""
+    ok = np.ones(len(values), dtype=bool)
+    for constraint in constraints:
+        ok &= constraint.violation(values[:, constraint.column(names)]) <= 0
+    return ok
 
 
 @frozen(kw_only=True)
@@ -129,7 +143,7 @@ class PolicyProblem(Problem):
             vtype=int,
         )
         names = [o.name for o in family.objectives]
-        self.constraints = [(names.index(c.objective), c) for c in constraints]
+        self.constraints = [(c.column(names), c) for c in constraints]
         self.archive = archive
         self.signs = np.array([o.direction.sign for o in family.objectives])
         self.progress = progress
@@ -178,10 +192,6 @@ def search(
     evaluated again and belong to the result.
     """
     archive = archive if archive is not None else Archive(evaluator, len(family.decisions), len(family.objectives))
-    names = [o.name for o in family.objectives]
-    for constraint in settings.constraints:
-        if constraint.objective not in names:
-            raise OptionError(f"constraint {constraint}: no objective {constraint.objective!r}; objectives: {', '.join(names)}")
     problem = PolicyProblem(family, archive, progress=on_evaluation, constraints=settings.constraints)
     algorithm = NSGA2(
         pop_size=settings.population,

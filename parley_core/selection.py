@@ -10,7 +10,7 @@ from parley_core import metrics
 from parley_core.errors import OptionError
 from parley_core.rundir import RunDirectory
 from parley_core.runtime import URC
-from parley_core.search import Constraint
+from parley_core.search import Constraint, meets
 
 
 def select(run: RunDirectory, constraints: Sequence[Constraint] = (), prefer: str | None = None) -> str:
@@ -18,11 +18,7 @@ def select(run: RunDirectory, constraints: Sequence[Constraint] = (), prefer: st
     on ``prefer`` (ties: the knee of those), or else the knee point."""
     names = [o["name"] for o in run.objectives]
     values = np.array([v for _, v in run.front], dtype=float).reshape(-1, len(names))
-    feasible = np.ones(len(values), dtype=bool)
-    for constraint in constraints:
-        if constraint.objective not in names:
-            raise OptionError(f"constraint {constraint}: no objective {constraint.objective!r}; objectives: {', '.join(names)}")
-        feasible &= constraint.violation(values[:, names.index(constraint.objective)]) <= 0
+    feasible = meets(values, names, constraints)
     if not feasible.any():
         raise OptionError(
             f"no policy of the front meets {' and '.join(map(str, constraints))}; relax the constraints"

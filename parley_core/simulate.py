@@ -58,9 +58,7 @@ def _wilson(successes: int, n: int) -> tuple[float, float]:
 def simulate(family: Family, values: Sequence[int], episodes: int, seed: int, max_steps: int = 10_000) -> list[Estimate | str]:
     """Estimates per objective (or a sentence saying why one cannot be simulated)."""
     program = prism.parse_program(family.prism, origin="the augmented model")
-    manager = program.expression_manager
-    by_name = {c.name: c.expression_variable for c in program.constants}
-    instance = program.define_undefined_constants({by_name[n]: manager.integer(int(v)) for n, v in zip(family.names, values)})
+    instance = prism.define_constants(program, dict(zip(family.names, values)))
     properties = prism.parse_properties([o.formula for o in family.objectives], instance, origin="objective")
     options = stormpy.BuilderOptions(properties)
     try:

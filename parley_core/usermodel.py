@@ -22,7 +22,7 @@ from attrs import field, frozen
 
 from parley_core.casestudy import CaseStudy
 from parley_core.errors import ModelError, OptionError, read_text
-from parley_core.model import Baseline, DecisionKind, Direction, Objective, Service, SystemModel
+from parley_core.model import Baseline, Decision, DecisionKind, Direction, Family, Objective, Service, SystemModel
 from parley_core.prism import program as prism
 
 
@@ -150,15 +150,12 @@ def system_from_file(
                 baselines.append(Baseline(name=f"model ({service.constant}={value})", values={service.constant: value}))
     for name in observation:
         prism.variable_domain(program, name, origin="--observe variable")  # exists and is bounded
-    highest = {constants[s.constant].expression_variable: program.expression_manager.integer(s.high) for s in services}
-    definitions = {c.expression_variable: c.definition for c in program.substitute_constants().constants if c.defined}
-    for variable in prism.all_variables(program):  # Storm's builder crashes on a bound like [0..1/0]
-        for expression in (getattr(variable, "lower_bound_expression", None), getattr(variable, "upper_bound_expression", None)):
-            if expression is None:
-                continue
-            closed = expression.substitute(highest).substitute(definitions)
-            if not closed.get_variables() and prism.fixed_int(closed) is None:
-                raise ModelError(f"variable {variable.name} has a bound {expression} that is not a finite integer; fix it")
+    highest = prism.integer_constants(program, {s.constant: s.high for s in services})
+    definitions = prism.constant_definitions(program)
+    for variable in prism.integer_variables(program):  # Storm's builder crashes on a bound like [0..1/0]
+        for bound in prism.closed_bounds(program, variable, highest, definitions):
+            if not bound.get_variables() and prism.fixed_int(bound) is None:
+                raise ModelError(f"variable {variable.name} has a bound {bound} that is not a finite integer; fix it")
 
     objectives = read_objectives(properties, maximize, minimize) if properties is not None else []
     if objectives:
@@ -209,10 +206,8 @@ def case_study_for(system: SystemModel, path: Path) -> CaseStudy:
     )
 
 
-def family_of_run(run) -> "Family":
+def family_of_run(run) -> Family:
     """The family of a run directory, rebuilt from its model.prism and decisions.csv (no plugin needed)."""
-    from parley_core.model import Decision, Family
-
     model = run.summary["model"]
     services = {
         s["constant"]: Service(name=s["name"], constant=s["constant"], kind=DecisionKind(s["kind"]), low=s["range"][0], high=s["range"][1])

@@ -149,9 +149,27 @@ def _observation_rewards(family: Family, program) -> Rewards:
     return Rewards(name=OBSERVATION_REWARD, items=[RewardItem(guard="true", value=" + ".join(terms))])
 
 
-def _build_mdp(family: Family, properties_text: list[str]):
-    """The quotient MDP built by Storm (with choice origins), its arrays, and per choice the
-    (decision index, value) pairs that enable it (-1: no decision)."""
+@frozen(kw_only=True)
+class _Built:
+    """The quotient MDP as Storm built it, its UMB arrays, and per choice its state, its
+    (decision index, value) tags (-1: no decision), its services and its observation
+    valuation (an index into ``full``, every valuation of the observation domains)."""
+
+    mdp: object = field(eq=False)
+    program: object = field(eq=False)
+    properties: list = field(eq=False)
+    arrays: dict = field(eq=False)
+    state_choices: np.ndarray = field(eq=False)
+    state_of_choice: np.ndarray = field(eq=False)
+    choice_dec: np.ndarray = field(eq=False)
+    choice_val: np.ndarray = field(eq=False)
+    service_of_choice: np.ndarray = field(eq=False)
+    obs_of_choice: np.ndarray = field(eq=False)
+    full: list = field(eq=False)
+
+
+def _build_mdp(family: Family, properties_text: list[str]) -> _Built:
+    """Build the quotient MDP with Storm (with choice origins) and tag its choices."""
     text, tags = quotient_program(family)
     program = prism.parse_program(text, origin="the quotient model")
     properties = prism.parse_properties(properties_text, program, origin="objective")
@@ -199,7 +217,11 @@ def _build_mdp(family: Family, properties_text: list[str]):
     choice_val = id_value[identifiers]
     obs_of_choice = observation[state_of_choice]
     choice_dec = np.where(service_of_choice >= 0, decision_of[obs_of_choice[:, None], np.maximum(service_of_choice, 0)], -1)
-    return mdp, program, properties, arrays, state_choices, state_of_choice, choice_dec, choice_val, service_of_choice, obs_of_choice, full
+    return _Built(
+        mdp=mdp, program=program, properties=properties, arrays=arrays, state_choices=state_choices,
+        state_of_choice=state_of_choice, choice_dec=choice_dec, choice_val=choice_val,
+        service_of_choice=service_of_choice, obs_of_choice=obs_of_choice, full=full,
+    )
 
 
 def _full_valuations(family: Family, program) -> list[tuple[int, ...]]:
@@ -208,22 +230,23 @@ def _full_valuations(family: Family, program) -> list[tuple[int, ...]]:
 
 def consulted_valuations(family: Family) -> set[tuple[int, ...]]:
     """Observation valuations at which some reachable state of some policy consults a service."""
-    _, _, _, _, _, _, _, _, service_of_choice, obs_of_choice, full = _build_mdp(family, [])
-    tagged = (service_of_choice >= 0).any(axis=1)
-    return {full[i] for i in np.unique(obs_of_choice[tagged])}
+    built = _build_mdp(family, [])
+    tagged = (built.service_of_choice >= 0).any(axis=1)
+    return {built.full[i] for i in np.unique(built.obs_of_choice[tagged])}
 
 
 def build_quotient(family: Family) -> Quotient:
     """Build the quotient MDP with Storm and read it into arrays."""
     formulas = [o.formula for o in family.objectives]
-    mdp, program, properties, arrays, state_choices, state_of_choice, choice_dec, choice_val, service_of_choice, _, _ = _build_mdp(family, formulas)
+    built = _build_mdp(family, formulas)
+    mdp, program, properties, arrays = built.mdp, built.program, built.properties, built.arrays
     n = mdp.nr_states
-    if ((service_of_choice >= 0) & (choice_dec < 0)).any():
+    if ((built.service_of_choice >= 0) & (built.choice_dec < 0)).any():
         raise RuntimeError("a reachable observation valuation has no decision")
 
     reward_names = sorted({_reward_name(p, program) for p in properties if p.get_raw_formula().is_reward_operator_formula})
     state_rewards = np.zeros((max(1, len(reward_names)), n))
-    choice_rewards = np.zeros((max(1, len(reward_names)), len(state_of_choice)))
+    choice_rewards = np.zeros((max(1, len(reward_names)), len(built.state_of_choice)))
     for r, name in enumerate(reward_names):
         base = f"annotations/rewards/{name}"
         if f"{base}/states/values.bin" in arrays:
@@ -240,12 +263,12 @@ def build_quotient(family: Family) -> Quotient:
     return Quotient(
         states=n,
         initial=int(mdp.initial_states[0]),
-        state_choices=state_choices,
+        state_choices=built.state_choices,
         choice_branches=arrays["choice-to-branches.bin"].astype(np.int64),
         targets=arrays["branch-to-target.bin"].astype(np.int64),
         probabilities=arrays["branch-to-probability.bin"].astype(np.float64),
-        choice_dec=choice_dec.astype(np.int64),
-        choice_val=choice_val.astype(np.int64),
+        choice_dec=built.choice_dec.astype(np.int64),
+        choice_val=built.choice_val.astype(np.int64),
         state_rewards=state_rewards,
         choice_rewards=choice_rewards,
         objectives=objectives,
@@ -406,11 +429,11 @@ class QuotientSolver:
         if objective.kind == "total":
             matrix = sp.csr_matrix((vals, cols, indptr), shape=(count, count))
             _, labels = csgraph.connected_components(matrix, directed=True, connection="strong")
+            # bottom components: no transition with positive probability leaves them
+            sources = np.repeat(np.arange(count), np.diff(indptr))
+            leaving = (labels[cols] != labels[sources]) & (vals > 0)
             leaves = np.ones(labels.max() + 1, dtype=bool)
-            for s in range(count):
-                for e in range(indptr[s], indptr[s + 1]):
-                    if labels[cols[e]] != labels[s] and vals[e] > 0:
-                        leaves[labels[s]] = False
+            leaves[labels[sources[leaving]]] = False
             bottom = leaves[labels]
             positive = np.zeros(labels.max() + 1, dtype=bool)
             np.logical_or.at(positive, labels, bottom & (reward > 0))

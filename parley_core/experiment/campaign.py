@@ -13,7 +13,6 @@ import glob
 import itertools
 import multiprocessing
 import os
-import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -257,32 +256,21 @@ def verify_record(case_name: str, record: RunRecord) -> RunRecord:
     from attrs import evolve
 
     from parley_core import metrics
-    from parley_core.augment import augment
-    from parley_core.evaluate.storm import StormEvaluator
     from parley_core.model import Direction
+    from parley_core.pipeline import check_with_storm, prepare
     from parley_core.plugins import load_registry
 
     case = load_registry().get(case_name)
     assignments = [f"{k}={'none' if v is None else v}" for k, v in record.options.items()]
-    family = augment(case.build(case.options(assignments)))
+    family = prepare(case, case.options(assignments)).family
     policies = np.array(record.front["policies"], dtype=np.int64).reshape(-1, len(family.decisions))
     searched = np.array(record.front["values"], dtype=float).reshape(len(policies), -1)
-    start = time.perf_counter()
-    with StormEvaluator(family, workers=1) as storm:
-        checked = storm.evaluate(policies)
-    directions = [Direction(o["direction"]) for o in record.objectives]
-    keep = metrics.nondominated(checked, directions)
-    summary = dict(record.summary)
-    summary["verification"] = {
-        "by": "storm",
-        "policies": len(policies),
-        "max_difference": float(np.abs(checked - searched).max()) if len(policies) else 0.0,
-        "seconds": time.perf_counter() - start,
-    }
+    verification, checked = check_with_storm(family, policies, searched, workers=1)
+    keep = metrics.nondominated(checked, [Direction(o["direction"]) for o in record.objectives])
     return evolve(
         record,
         front={"policies": policies[keep].tolist(), "values": checked[keep].tolist()},
-        summary=summary,
+        summary={**record.summary, "verification": asdict(verification)},
     )
 
 

@@ -100,8 +100,6 @@ def build_crashes(program: PrismProgram, values: Mapping[str, int]) -> int | Non
     model must not take parley down with it."""
     if not hasattr(os, "fork"):
         return None
-    by_name = {c.name: c.expression_variable for c in program.constants}
-    manager = program.expression_manager
     pid = os.fork()
     if pid == 0:  # the child: build, then leave at once whatever happened
         import faulthandler
@@ -110,15 +108,43 @@ def build_crashes(program: PrismProgram, values: Mapping[str, int]) -> int | Non
         code = 0
         try:
             program.substitute_constants()
-            defined = program.define_undefined_constants(
-                {by_name[n]: manager.integer(int(v)) for n, v in values.items() if n in by_name}
-            )
-            stormpy.build_model(defined)
+            stormpy.build_model(define_constants(program, values))
         except BaseException:  # errors are reported by the parent's own build
             code = 1
         os._exit(code)
     _, status = os.waitpid(pid, 0)
     return os.WTERMSIG(status) if os.WIFSIGNALED(status) else None
+
+
+def integer_constants(program: PrismProgram, values: Mapping[str, int]) -> dict:
+    """``{expression variable: integer expression}`` for the named constants of ``program``
+    (names it does not declare are left out), as ``substitute`` and
+    ``define_undefined_constants`` take them."""
+    by_name = {c.name: c.expression_variable for c in program.constants}
+    manager = program.expression_manager
+    return {by_name[name]: manager.integer(int(value)) for name, value in values.items() if name in by_name}
+
+
+def define_constants(program: PrismProgram, values: Mapping[str, int]) -> PrismProgram:
+    """``program`` with the named undefined constants set to the given integers."""
+    return program.define_undefined_constants(integer_constants(program, values))
+
+
+def constant_definitions(program: PrismProgram) -> dict:
+    """Every defined constant's definition in terms of numbers alone (for ``substitute``).
+    Check integer definitions with :func:`fixed_int` first: Storm's substitution crashes on
+    ``const int k = 1/0;``."""
+    return {c.expression_variable: c.definition for c in program.substitute_constants().constants if c.defined}
+
+
+def closed_bounds(program: PrismProgram, variable, overrides: Mapping | None = None, definitions: Mapping | None = None) -> tuple:
+    """An integer variable's lower and upper bound with ``overrides`` (constants to
+    expressions, applied first) and then the program's constant definitions substituted."""
+    definitions = constant_definitions(program) if definitions is None else definitions
+    bounds = (variable.lower_bound_expression, variable.upper_bound_expression)
+    if overrides:
+        bounds = tuple(b.substitute(dict(overrides)) for b in bounds)
+    return tuple(b.substitute(dict(definitions)) for b in bounds)
 
 
 def fixed_int(expression) -> int | None:
@@ -150,26 +176,24 @@ def variable_domain(
         raise ModelError(f"{origin} {name!r} is not a variable of the model; variables: {', '.join(known)}")
     if isinstance(variable, PrismBooleanVariable) or not hasattr(variable, "lower_bound_expression"):
         return range(0, 2)
-    lower, upper = variable.lower_bound_expression, variable.upper_bound_expression
-    if overrides:
-        lower, upper = lower.substitute(dict(overrides)), upper.substitute(dict(overrides))
-    definitions = {
-        c.expression_variable: c.definition for c in program.substitute_constants().constants if c.defined
-    }
-    bounds = []
-    for expression in (lower, upper):
-        value = fixed_int(expression.substitute(definitions))
-        if value is None:
-            raise ModelError(
-                f"{origin} {name!r} has bounds [{variable.lower_bound_expression}..{variable.upper_bound_expression}] "
-                "that are not fixed integers; define the constants its bounds use and keep them integers"
-            )
-        bounds.append(value)
-    return range(bounds[0], bounds[1] + 1)
+    low, high = (fixed_int(b) for b in closed_bounds(program, variable, overrides))
+    if low is None or high is None:
+        raise ModelError(
+            f"{origin} {name!r} has bounds [{variable.lower_bound_expression}..{variable.upper_bound_expression}] "
+            "that are not fixed integers; define the constants its bounds use and keep them integers"
+        )
+    return range(low, high + 1)
 
 
 def is_boolean(program: PrismProgram, name: str) -> bool:
     return any(v.name == name for v in boolean_variables(program))
+
+
+def integer_variables(program: PrismProgram) -> list:
+    result = list(program.global_integer_variables)
+    for module in program.modules:
+        result += list(module.integer_variables)
+    return result
 
 
 def boolean_variables(program: PrismProgram) -> list:
@@ -180,10 +204,7 @@ def boolean_variables(program: PrismProgram) -> list:
 
 
 def all_variables(program: PrismProgram) -> list:
-    result = list(program.global_integer_variables) + list(program.global_boolean_variables)
-    for module in program.modules:
-        result += list(module.integer_variables) + list(module.boolean_variables)
-    return result
+    return integer_variables(program) + boolean_variables(program)
 
 
 def command_uses(command, variables: set) -> bool:
