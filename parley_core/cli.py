@@ -77,15 +77,7 @@ class RichReporter:
 
     def __init__(self, console: Console) -> None:
         self.console = console
-        self.progress = Progress(
-            SpinnerColumn(),
-            TextColumn("{task.description:<18}"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TimeElapsedColumn(),
-            console=console,
-            transient=False,
-        )
+        self.progress = _progress(console, "{task.description:<18}")
         self.task = None
 
     def __enter__(self) -> RichReporter:
@@ -138,6 +130,14 @@ def _prepare(case_name: str, assignments: list[str] | None, reporter=None):
 
 def _stderr() -> Console:
     return Console(stderr=True)
+
+
+def _progress(console: Console | None = None, description: str = "{task.description}") -> Progress:
+    """The progress bars of every command: spinner, what, bar, done of total, time (on stderr)."""
+    return Progress(
+        SpinnerColumn(), TextColumn(description), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+        console=console or _stderr(),
+    )
 
 
 def _fmt(value: float) -> str:
@@ -576,15 +576,10 @@ def experiment_run(
     chosen = instances_from(study, grid or [], instances, instance_option)
     campaign = name or study.name
     specs = plan(campaign, study, chosen, set_ or [], reps, budget, first_seed)
-    console = Console(stderr=True)
     with Store(store) as results:
         results.begin_campaign(campaign, study.name, {**describe(budget, set_ or []), "first_seed": first_seed})
         already = len(results.done(campaign) & {(s.instance, s.repetition) for s in specs})
-        progress = Progress(
-            SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-            console=console,
-        )
-        with progress:
+        with _progress() as progress:
             task = progress.add_task(f"campaign {campaign}", total=len(specs), completed=already)
             outcome = execute(specs, results, workers=workers, scheduler=scheduler, on_done=lambda _spec: progress.advance(task))
     Console().print(
@@ -618,7 +613,7 @@ def experiment_verify(
     with Store(store) as results:
         campaign, case_name = _pick_campaign(results, store, name)
         selected = [r for r in results.runs(campaign) if wanted is None or r.repetition in wanted]
-        with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), console=_stderr()) as progress:
+        with _progress() as progress:
             task = progress.add_task(f"verify {campaign}", total=len(selected))
             progress.update(task, completed=sum(is_verified(r) for r in selected))
             now, before, worst = verify_stored(
@@ -686,29 +681,8 @@ def experiment_report(
     )
     rows = campaign_report.analyse(records, settings, published)
     header = [f"{n} {'>=' if d == 'max' else '<='}" for n, d in zip(objectives, directions)]
-    table = campaign_report.table2_markdown(rows, settings, header, published is not None)
+    text = campaign_report.table2_document(chosen, case_name, settings_record, records, rows, settings, header, published is not None)
     out.mkdir(parents=True, exist_ok=True)
-    instances = sorted({r.instance for r in records})
-    reps = sorted({r.repetition for r in records})
-    from parley_core.experiment.campaign import is_verified
-
-    checked = sum(is_verified(r) for r in records)
-    worst = max((r.summary["verification"]["max_difference"] for r in records if is_verified(r)), default=0.0)
-    if checked == len(records):
-        provenance = f"Storm's, every front re-checked (largest difference from the search's values {worst:.1e})"
-    elif checked:
-        provenance = (f"Storm's for {checked} of {len(records)} runs (largest difference {worst:.1e}); the others the "
-                      "search evaluator's (`parley experiment verify` re-checks them)")
-    else:
-        provenance = "the search evaluator's, not re-checked by Storm yet (`parley experiment verify` re-checks them)"
-    text = (
-        f"# Campaign {chosen} ({case_name})\n\n{len(instances)} instances x {len(reps)} repetitions "
-        f"({len(records)} runs); settings: {settings_record}.\nFront values: {provenance}.\n\n"
-        "Per requirement setting (bounds), the number of instances where parley is significantly better / worse / "
-        "not different from the baseline (Mann-Whitney U at 0.05 on the repetitions' gains against zero; A12 per "
-        "instance in table2.csv). HV: hypervolume with the bounds as reference; SP: Deb's spread (lower is better).\n\n"
-        + table
-    )
     (out / "table2.md").write_text(text)
     (out / "table2.csv").write_text(campaign_report.rows_csv(rows, objectives))
     caption = ", ".join(f"{h} {b:g}" for h, b in zip(header, figure))
@@ -724,7 +698,9 @@ def experiment_scalability(
     sizes: Annotated[str, typer.Option(help="Comma-separated values of the size option, e.g. 5,10,15,20,30,50.")] = "5,10,15,20,30,50",
     option: Annotated[str, typer.Option(help="The option the sizes go to.")] = "size",
     set_: SetOption = None,
-    storm_policies: Annotated[int, typer.Option(min=1, help="Policies timed with the Storm evaluator per size.")] = 10,
+    storm_policies: Annotated[
+        int, typer.Option(min=1, help="Policies timed with the Storm evaluator per size (a 50x50 robot_grid policy takes about 30 s).")
+    ] = 10,
     out: Annotated[Path | None, typer.Option(help="Directory for table3.md and table3.json.")] = None,
 ) -> None:
     """Table 3: model size, per-policy time of both evaluators, search time and search space per size."""
@@ -738,10 +714,10 @@ def experiment_scalability(
     for v in values:
         study.options([*(set_ or []), f"{option}={v}"])
     rows = []
-    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), console=_stderr()) as progress:
+    with _progress() as progress:
         task = progress.add_task("scalability", total=len(values))
         for v in values:
-            row = measure_isolated(study.name, [*(set_ or []), f"{option}={v}"], storm_policies=storm_policies if v <= 20 else max(2, storm_policies // 4))
+            row = measure_isolated(study.name, [*(set_ or []), f"{option}={v}"], storm_policies=storm_policies)
             row["instance"] = f"{option}={v}"
             rows.append(row)
             progress.advance(task)

@@ -181,6 +181,8 @@ def test_unverified_fronts_are_verified_later_by_storm(tmp_path):
         # a sample first: repetition 1 of each instance
         assert verify_stored(store, "v", "robot_grid", workers=1, repetitions={1})[:2] == (2, 0)
         assert sorted(r.repetition for r in store.runs("v") if is_verified(r)) == [1, 1]
+        document = report.table2_document("v", "robot_grid", {}, list(store.runs("v")), [], [], ["success >=", "cost <="], False)
+        assert "Front values: Storm's for 2 of 4 runs" in document
         now, already, worst = verify_stored(store, "v", "robot_grid", workers=1)
         assert (now, already) == (2, 2) and worst <= 1e-9
         after = list(store.runs("v"))
@@ -188,3 +190,5 @@ def test_unverified_fronts_are_verified_later_by_storm(tmp_path):
         for old, new in zip(before, after):
             assert np.allclose(old.front["values"], new.front["values"], atol=1e-9)
         assert verify_stored(store, "v", "robot_grid", workers=1)[:2] == (0, 4)
+        document = report.table2_document("v", "robot_grid", {}, after, [], [], ["success >=", "cost <="], False)
+        assert "Front values: Storm's, every front re-checked" in document

@@ -35,7 +35,7 @@ from attrs import frozen  # noqa: E402
 
 from parley_core import metrics  # noqa: E402
 from parley_core.errors import OptionError  # noqa: E402
-from parley_core.experiment.campaign import records_values  # noqa: E402
+from parley_core.experiment.campaign import is_verified, records_values  # noqa: E402
 from parley_core.experiment.stats import compare  # noqa: E402
 from parley_core.experiment.store import RunRecord  # noqa: E402
 from parley_core.model import Direction  # noqa: E402
@@ -195,6 +195,33 @@ def table2_markdown(rows: Sequence[Row], settings: Sequence[Setting], names: Seq
         total += " |"
     out.write(total + "\n")
     return out.getvalue()
+
+
+def table2_document(
+    campaign: str, case_name: str, settings_record, records: Sequence[RunRecord], rows: Sequence[Row],
+    settings: Sequence[Setting], header: Sequence[str], published: bool,
+) -> str:
+    """table2.md: what the campaign holds, whose values its fronts are, and Table 2."""
+    instances = {r.instance for r in records}
+    reps = {r.repetition for r in records}
+    checked = [r for r in records if is_verified(r)]
+    worst = max((r.summary["verification"]["max_difference"] for r in checked), default=0.0)
+    if len(checked) == len(records):
+        provenance = f"Storm's, every front re-checked (largest difference from the search's values {worst:.1e})"
+    elif checked:
+        provenance = (f"Storm's for {len(checked)} of {len(records)} runs (largest difference {worst:.1e}); the others the "
+                      "search evaluator's (`parley experiment verify` re-checks them)")
+    else:
+        provenance = "the search evaluator's, not re-checked by Storm yet (`parley experiment verify` re-checks them)"
+    return (
+        f"# Campaign {campaign} ({case_name})\n\n{len(instances)} instances x {len(reps)} repetitions "
+        f"({len(records)} runs); settings: {settings_record}.\nFront values: {provenance}.\n\n"
+        "Per requirement setting (bounds), the number of instances where parley is significantly better / worse / "
+        "not different from the baseline (Mann-Whitney U at 0.05 on the repetitions' gains against zero; A12 per "
+        "instance in table2.csv). HV: hypervolume with the bounds as reference; SP: Deb's spread; paper's SP: the "
+        "paper's mean neighbour distance; IGD+: distance from the best known front (lower is better for the last three).\n\n"
+        + table2_markdown(rows, settings, header, published)
+    )
 
 
 def rows_csv(rows: Sequence[Row], names: Sequence[str]) -> str:
