@@ -8,6 +8,7 @@ settings is refused.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sqlite3
 import time
@@ -85,6 +86,18 @@ class Store:
     def close(self) -> None:
         self.connection.close()
 
+    @contextlib.contextmanager
+    def _transaction(self) -> Iterator[None]:
+        """One immediate transaction: committed whole, or rolled back (also on KeyboardInterrupt)."""
+        self.connection.execute("BEGIN IMMEDIATE")
+        try:
+            yield
+        except BaseException:
+            if self.connection.in_transaction:
+                self.connection.execute("ROLLBACK")
+            raise
+        self.connection.execute("COMMIT")
+
     def begin_campaign(self, name: str, case_study: str, settings: dict[str, Any]) -> None:
         """Record a campaign, or check that a recorded one has the same case study and settings."""
         row = self.connection.execute("SELECT case_study, settings FROM campaigns WHERE name = ?", (name,)).fetchone()
@@ -111,8 +124,7 @@ class Store:
 
     def add(self, record: RunRecord) -> bool:
         """Store a finished run in one transaction; False if that run was stored already."""
-        try:
-            self.connection.execute("BEGIN IMMEDIATE")
+        with self._transaction():
             cursor = self.connection.execute(
                 "INSERT OR IGNORE INTO runs (campaign, instance, repetition, seed, options, objectives, front, baseline, summary, finished) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
@@ -122,11 +134,6 @@ class Store:
                     json.dumps(record.baseline), json.dumps(record.summary), time.time(),
                 ),
             )
-            self.connection.execute("COMMIT")
-        except BaseException:
-            if self.connection.in_transaction:
-                self.connection.execute("ROLLBACK")
-            raise
         return cursor.rowcount == 1
 
     def runs(self, campaign: str | None = None) -> Iterator[RunRecord]:
@@ -144,14 +151,8 @@ class Store:
 
     def replace_front(self, record: RunRecord) -> None:
         """Replace a stored run's front and summary (after verification), in one transaction."""
-        try:
-            self.connection.execute("BEGIN IMMEDIATE")
+        with self._transaction():
             self.connection.execute(
                 "UPDATE runs SET front = ?, summary = ? WHERE campaign = ? AND instance = ? AND repetition = ?",
                 (json.dumps(record.front), json.dumps(record.summary), record.campaign, record.instance, record.repetition),
             )
-            self.connection.execute("COMMIT")
-        except BaseException:
-            if self.connection.in_transaction:
-                self.connection.execute("ROLLBACK")
-            raise
