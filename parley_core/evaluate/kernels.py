@@ -116,34 +116,63 @@ def backward_reach(count, indptr, cols, start, through):
     return seen
 
 
+@njit(cache=True)
+def cannot_reach(count, indptr, cols, right, through):
+    """States that cannot reach a ``right`` state, found in one pass from the last state to
+    the first: a state outside ``through`` (and not right), or one in it whose successors
+    other than itself were all found before. A subset of all such states (a successor with
+    a smaller index than its predecessor counts as able to reach), so cheap and always sound;
+    on breadth-first orders it is nearly all of them (crashed robots, finished runs)."""
+    out = np.zeros(count, dtype=np.bool_)
+    for s in range(count - 1, -1, -1):
+        if right[s]:
+            continue
+        if not through[s]:
+            out[s] = True
+            continue
+        unable = True
+        for e in range(indptr[s], indptr[s + 1]):
+            t = cols[e]
+            if t != s and not out[t]:
+                unable = False
+                break
+        out[s] = unable
+    return out
+
+
 @njit(cache=True, fastmath=True)
 def gauss_seidel(count, indptr, cols, vals, free, x, constant, tolerance, max_sweeps):
     """Solve x = constant + P x on the ``free`` states, the others fixed at their x.
 
     Sweeps run from the last-discovered state back to the initial one; a state's self-loop
-    is solved for directly. Stops when no value moves by more than ``tolerance`` relative
-    to its size (absolutely, below 1); returns the sweeps used, or -1 without convergence.
+    is solved for directly (its factor 1 / (1 - loop) computed once; a state that only
+    loops keeps its x). Stops when no value moves by more than ``tolerance`` relative to its
+    size (absolutely, below 1); returns the sweeps used, or -1 without convergence.
     """
+    scale = np.zeros(count)
+    for s in range(count):
+        if free[s]:
+            loop = 0.0
+            for e in range(indptr[s], indptr[s + 1]):
+                if cols[e] == s:
+                    loop += vals[e]
+            if loop < 1.0:
+                scale[s] = 1.0 / (1.0 - loop)
     for sweep in range(max_sweeps):
         change = 0.0
         for s in range(count - 1, -1, -1):
-            if not free[s]:
+            if scale[s] == 0.0:
                 continue
             total = constant[s]
-            loop = 0.0
             for e in range(indptr[s], indptr[s + 1]):
                 t = cols[e]
-                if t == s:
-                    loop += vals[e]
-                else:
+                if t != s:
                     total += vals[e] * x[t]
-            if loop >= 1.0:
-                continue
-            value = total / (1.0 - loop)
+            value = total * scale[s]
             delta = abs(value - x[s])
-            scale = abs(value)
-            if scale > 1.0:
-                delta /= scale
+            size = abs(value)
+            if size > 1.0:
+                delta /= size
             if delta > change:
                 change = delta
             x[s] = value
@@ -178,19 +207,49 @@ def bounded(count, indptr, cols, vals, steps, x, constant, free, levels):
 
 @njit(cache=True, fastmath=True)
 def cumulative(count, indptr, cols, vals, steps, reward, levels):
-    """Expected reward within ``steps`` steps from the initial state: ``steps`` iterations of
-    x = reward + P x, each on the states that can still matter (see :func:`bounded`)."""
-    x = np.zeros(count)
-    y = np.zeros(count)
-    limit = count
-    for j in range(1, steps + 1):
-        horizon = steps - j
-        while limit > 0 and levels[limit - 1] > horizon:
-            limit -= 1
+    """Expected reward within ``steps`` steps from the initial state, computed forward: the
+    sum over steps j < ``steps`` of the reward expected at step j, the distribution pushed
+    one step at a time.
+
+    Step j only scans the states within j steps of the initial one (a prefix of the
+    breadth-first order ``levels`` comes from) and only pushes the ones that carry
+    probability and can still earn a reward: states with no reward and no successor but
+    themselves and such states (crashed or finished robots) are dropped with their mass,
+    found in one pass from the last state to the first. On robot_grid this touches a
+    quarter of the rows of the backward iteration (x = reward + P x, ``steps`` times), as
+    the mass sits in one phase of the turn at each step."""
+    idle = np.zeros(count, dtype=np.bool_)
+    for s in range(count - 1, -1, -1):
+        if reward[s] != 0.0:
+            continue
+        idle_here = True
+        for e in range(indptr[s], indptr[s + 1]):
+            t = cols[e]
+            if t != s and not idle[t]:
+                idle_here = False
+                break
+        idle[s] = idle_here
+    mass = np.zeros(count)
+    pushed = np.zeros(count)
+    mass[0] = 1.0
+    total = 0.0
+    limit = 1
+    for j in range(steps):
+        while limit < count and levels[limit] <= j:
+            limit += 1
+        last = j + 1 == steps
+        step_total = 0.0  # summed apart: adding each term to the growing total loses digits
         for s in range(limit):
-            total = reward[s]
-            for e in range(indptr[s], indptr[s + 1]):
-                total += vals[e] * x[cols[e]]
-            y[s] = total
-        x, y = y, x
-    return x[0]
+            m = mass[s]
+            if m == 0.0:
+                continue
+            mass[s] = 0.0
+            if idle[s]:
+                continue
+            step_total += m * reward[s]
+            if not last:
+                for e in range(indptr[s], indptr[s + 1]):
+                    pushed[cols[e]] += m * vals[e]
+        total += step_total
+        mass, pushed = pushed, mass
+    return total

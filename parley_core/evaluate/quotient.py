@@ -401,10 +401,12 @@ class QuotientSolver:
         if objective.kind == "until":
             left, right = objective.left[order], objective.right[order]
             # Iterating from 0, a state that cannot reach a right state keeps exactly 0 (the
-            # value Storm's prob0 analysis gives it), so the graph analysis is only needed
-            # for the direct solve after a sweep limit, where those states make I - P singular.
+            # value Storm's prob0 analysis gives it), so the full graph analysis is only
+            # needed for the direct solve after a sweep limit, where those states make I - P
+            # singular. One cheap pass finds most of them and leaves them out of the sweeps.
+            free = left & ~right & ~kernels.cannot_reach(count, indptr, cols, right, left)
             x = np.where(right, 1.0, 0.0)
-            if kernels.gauss_seidel(count, indptr, cols, vals, left & ~right, x, np.zeros(count), TOLERANCE, MAX_SWEEPS) >= 0:
+            if kernels.gauss_seidel(count, indptr, cols, vals, free, x, np.zeros(count), TOLERANCE, MAX_SWEEPS) >= 0:
                 return float(x[0])
             can = kernels.backward_reach(count, indptr, cols, right, left)
             x = np.where(right, 1.0, 0.0)

@@ -1,0 +1,123 @@
+"""The quotient evaluator's numba kernels against plain numpy on random DTMCs with the
+shapes that their shortcuts rely on: absorbing states with and without reward, states
+that cannot reach the target, self-loops, states unreachable in few steps."""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+import pytest
+
+from parley_core.evaluate import kernels
+
+
+def random_dtmc(seed: int, n: int = 60):
+    """A random DTMC in breadth-first order from state 0: (indptr, cols, vals, levels)."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for s in range(n):
+        kind = rng.random()
+        if kind < 0.15:
+            rows.append({s: 1.0})  # absorbing
+        else:
+            successors = rng.choice(n, size=rng.integers(1, 4), replace=False)
+            weights = rng.random(len(successors)) + 0.1
+            rows.append(dict(zip(successors.tolist(), (weights / weights.sum()).tolist())))
+    # breadth-first renumbering from state 0, dropping what it cannot reach
+    order, level = [0], {0: 0}
+    queue = deque([0])
+    while queue:
+        s = queue.popleft()
+        for t in rows[s]:
+            if t not in level:
+                level[t] = level[s] + 1
+                order.append(t)
+                queue.append(t)
+    local = {s: i for i, s in enumerate(order)}
+    indptr, cols, vals = [0], [], []
+    for s in order:
+        for t, p in rows[s].items():
+            cols.append(local[t])
+            vals.append(p)
+        indptr.append(len(cols))
+    levels = np.array([level[s] for s in order], dtype=np.int64)
+    return np.array(indptr, dtype=np.int64), np.array(cols, dtype=np.int64), np.array(vals), levels
+
+
+def dense(indptr, cols, vals):
+    count = len(indptr) - 1
+    matrix = np.zeros((count, count))
+    for s in range(count):
+        for e in range(indptr[s], indptr[s + 1]):
+            matrix[s, cols[e]] += vals[e]
+    return matrix
+
+
+def reaches(matrix, target, through):
+    """Plain fixpoint: states that reach ``target`` through ``through`` states."""
+    can = target.copy()
+    while True:
+        more = can | (through & ((matrix > 0) @ can))
+        if (more == can).all():
+            return can
+        can = more
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_cumulative_is_the_backward_recurrence(seed):
+    indptr, cols, vals, levels = random_dtmc(seed)
+    count = len(levels)
+    rng = np.random.default_rng(1000 + seed)
+    # about half the states earn nothing, so that absorbing states with and without reward
+    # (dropped with their mass, or earning at every step) both occur
+    reward = np.where(rng.random(count) < 0.5, 0.0, rng.random(count) * 3)
+    matrix = dense(indptr, cols, vals)
+    for steps in (0, 1, 2, 7, 40):
+        x = np.zeros(count)
+        for _ in range(steps):
+            x = reward + matrix @ x
+        value = kernels.cumulative(count, indptr, cols, vals, steps, reward, levels)
+        assert value == pytest.approx(x[0], rel=1e-12, abs=1e-12)
+
+
+def test_cumulative_keeps_earning_in_an_absorbing_state_with_a_reward():
+    # 0 -> 1 (absorbing, reward 2) or 2 (absorbing, no reward), one half each
+    indptr = np.array([0, 2, 3, 4])
+    cols = np.array([1, 2, 1, 2])
+    vals = np.array([0.5, 0.5, 1.0, 1.0])
+    reward = np.array([1.0, 2.0, 0.0])
+    levels = np.array([0, 1, 1])
+    # 1 at step 0, then 0.5 * 2 at each of the 9 later steps
+    assert kernels.cumulative(3, indptr, cols, vals, 10, reward, levels) == pytest.approx(1 + 9 * 0.5 * 2)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_cannot_reach_is_sound_and_leaves_the_solution_unchanged(seed):
+    indptr, cols, vals, levels = random_dtmc(seed)
+    count = len(levels)
+    rng = np.random.default_rng(2000 + seed)
+    right = rng.random(count) < 0.1
+    left = rng.random(count) < 0.85
+    matrix = dense(indptr, cols, vals)
+    truly_unable = ~reaches(matrix, right, left)
+    found = kernels.cannot_reach(count, indptr, cols, right, left)
+    assert not (found & ~truly_unable).any(), "a state that can reach the target was dropped"
+
+    # P[left U right] with and without the found states in the sweeps
+    values = []
+    for free in (left & ~right, left & ~right & ~found):
+        x = np.where(right, 1.0, 0.0)
+        assert kernels.gauss_seidel(count, indptr, cols, vals, free, x, np.zeros(count), 1e-14, 100_000) >= 0
+        values.append(x)
+    assert np.array_equal(values[0][found], np.zeros(found.sum()))
+    assert np.allclose(values[0], values[1], rtol=1e-12, atol=1e-12)
+    # and against a direct solve on the states that can reach
+    solve = truly_unable | right | ~left
+    exact = np.where(right, 1.0, 0.0)
+    idx = np.flatnonzero(~solve)
+    if len(idx):
+        a = np.eye(len(idx)) - matrix[np.ix_(idx, idx)]
+        b = matrix[np.ix_(idx, np.flatnonzero(right))].sum(axis=1)
+        exact[idx] = np.linalg.solve(a, b)
+    assert np.allclose(values[1], exact, rtol=1e-9, atol=1e-10)
