@@ -77,8 +77,15 @@ def test_cumulative_is_the_backward_recurrence(seed):
         x = np.zeros(count)
         for _ in range(steps):
             x = reward + matrix @ x
-        value = kernels.cumulative(count, indptr, cols, vals, steps, reward, levels)
-        assert value == pytest.approx(x[0], rel=1e-12, abs=1e-12)
+        # alone and together with a second reward structure (one pass serves both)
+        (alone,) = kernels.cumulative(count, indptr, cols, vals, steps, reward[None], levels)
+        assert alone == pytest.approx(x[0], rel=1e-12, abs=1e-12)
+        both = kernels.cumulative(count, indptr, cols, vals, steps, np.stack([reward, 1 - reward / 3]), levels)
+        assert both[0] == alone
+        y = np.zeros(count)
+        for _ in range(steps):
+            y = (1 - reward / 3) + matrix @ y
+        assert both[1] == pytest.approx(y[0], rel=1e-12, abs=1e-12)
 
 
 def test_cumulative_keeps_earning_in_an_absorbing_state_with_a_reward():
@@ -89,7 +96,7 @@ def test_cumulative_keeps_earning_in_an_absorbing_state_with_a_reward():
     reward = np.array([1.0, 2.0, 0.0])
     levels = np.array([0, 1, 1])
     # 1 at step 0, then 0.5 * 2 at each of the 9 later steps
-    assert kernels.cumulative(3, indptr, cols, vals, 10, reward, levels) == pytest.approx(1 + 9 * 0.5 * 2)
+    assert kernels.cumulative(3, indptr, cols, vals, 10, reward[None], levels)[0] == pytest.approx(1 + 9 * 0.5 * 2)
 
 
 @pytest.mark.parametrize("seed", range(40))

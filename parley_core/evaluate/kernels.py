@@ -206,10 +206,11 @@ def bounded(count, indptr, cols, vals, steps, x, constant, free, levels):
 
 
 @njit(cache=True, fastmath=True)
-def cumulative(count, indptr, cols, vals, steps, reward, levels):
-    """Expected reward within ``steps`` steps from the initial state, computed forward: the
-    sum over steps j < ``steps`` of the reward expected at step j, the distribution pushed
-    one step at a time.
+def cumulative(count, indptr, cols, vals, steps, rewards, levels):
+    """Expected reward within ``steps`` steps from the initial state, for each reward
+    structure (row) of ``rewards``, computed forward: each state's expected number of visits
+    in the first ``steps`` steps (the distribution pushed one step at a time, once for all
+    reward structures), weighed by its reward.
 
     Step j only scans the states within j steps of the initial one (a prefix of the
     breadth-first order ``levels`` comes from) and only pushes the ones that carry
@@ -218,9 +219,14 @@ def cumulative(count, indptr, cols, vals, steps, reward, levels):
     found in one pass from the last state to the first. On robot_grid this touches a
     quarter of the rows of the backward iteration (x = reward + P x, ``steps`` times), as
     the mass sits in one phase of the turn at each step."""
+    n_rewards = rewards.shape[0]
     idle = np.zeros(count, dtype=np.bool_)
     for s in range(count - 1, -1, -1):
-        if reward[s] != 0.0:
+        earns = False
+        for r in range(n_rewards):
+            if rewards[r, s] != 0.0:
+                earns = True
+        if earns:
             continue
         idle_here = True
         for e in range(indptr[s], indptr[s + 1]):
@@ -231,14 +237,13 @@ def cumulative(count, indptr, cols, vals, steps, reward, levels):
         idle[s] = idle_here
     mass = np.zeros(count)
     pushed = np.zeros(count)
+    visits = np.zeros(count)  # expected visits within the bound; the rewards are weighed at the end
     mass[0] = 1.0
-    total = 0.0
     limit = 1
     for j in range(steps):
         while limit < count and levels[limit] <= j:
             limit += 1
         last = j + 1 == steps
-        step_total = 0.0  # summed apart: adding each term to the growing total loses digits
         for s in range(limit):
             m = mass[s]
             if m == 0.0:
@@ -246,10 +251,13 @@ def cumulative(count, indptr, cols, vals, steps, reward, levels):
             mass[s] = 0.0
             if idle[s]:
                 continue
-            step_total += m * reward[s]
+            visits[s] += m
             if not last:
                 for e in range(indptr[s], indptr[s + 1]):
                     pushed[cols[e]] += m * vals[e]
-        total += step_total
         mass, pushed = pushed, mass
-    return total
+    totals = np.zeros(n_rewards)
+    for r in range(n_rewards):
+        for s in range(count):
+            totals[r] += rewards[r, s] * visits[s]
+    return totals

@@ -381,6 +381,12 @@ class QuotientSolver:
         self.levels = np.empty(n, dtype=np.int64)
         self.chosen = np.empty(max(1, int(np.diff(quotient.state_choices).max(initial=0))), dtype=np.int64)
         self.last_states = 0
+        # C<=k objectives with the same k share one forward pass: {k: (objectives, rewards)}
+        self.cumulative: dict[int, tuple[list[int], np.ndarray]] = {}
+        for i, objective in enumerate(quotient.objectives):
+            if objective is not None and objective.kind == "cumulative":
+                indices, rewards = self.cumulative.get(objective.steps, ([], np.empty(0, dtype=np.int64)))
+                self.cumulative[objective.steps] = ([*indices, i], np.append(rewards, objective.reward))
 
     def solve(self, policy: np.ndarray) -> list[float | None]:
         q = self.q
@@ -392,10 +398,15 @@ class QuotientSolver:
         self.last_states = count
         indptr, cols, vals = self.indptr[: count + 1], self.cols[:nnz], self.vals[:nnz]
         order = self.order[:count]
-        return [
-            None if objective is None else self._objective(objective, count, indptr, cols, vals, order)
-            for objective in q.objectives
-        ]
+        values: list[float | None] = [None] * len(q.objectives)
+        for steps, (indices, rewards) in self.cumulative.items():
+            totals = kernels.cumulative(count, indptr, cols, vals, steps, self.rewards[rewards, :count], self.levels)
+            for i, total in zip(indices, totals):
+                values[i] = float(total)
+        for i, objective in enumerate(q.objectives):
+            if objective is not None and objective.kind != "cumulative":
+                values[i] = self._objective(objective, count, indptr, cols, vals, order)
+        return values
 
     def _objective(self, objective, count, indptr, cols, vals, order) -> float:
         if objective.kind == "until":
@@ -416,8 +427,6 @@ class QuotientSolver:
             x = np.where(right, 1.0, 0.0)
             x = kernels.bounded(count, indptr, cols, vals, objective.steps, x, np.zeros(count), left & ~right, self.levels)
             return float(x[0])
-        if objective.kind == "cumulative":
-            return float(kernels.cumulative(count, indptr, cols, vals, objective.steps, self.rewards[objective.reward], self.levels))
         reward = self.rewards[objective.reward, :count].copy()
         if objective.kind == "reach_reward":
             right = objective.right[order]
