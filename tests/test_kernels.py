@@ -12,14 +12,17 @@ import pytest
 from parley_core.evaluate import kernels
 
 
-def random_dtmc(seed: int, n: int = 60):
-    """A random DTMC in breadth-first order from state 0: (indptr, cols, vals, levels)."""
+def random_dtmc(seed: int, n: int = 60, single: float = 0.0):
+    """A random DTMC in breadth-first order from state 0: (indptr, cols, vals, levels).
+    About a ``single`` share of the states have one successor (chains, also cycles)."""
     rng = np.random.default_rng(seed)
     rows = []
     for s in range(n):
         kind = rng.random()
         if kind < 0.15:
             rows.append({s: 1.0})  # absorbing
+        elif kind < 0.15 + single:
+            rows.append({int(rng.integers(n)): 1.0})
         else:
             successors = rng.choice(n, size=rng.integers(1, 4), replace=False)
             weights = rng.random(len(successors)) + 0.1
@@ -115,16 +118,58 @@ def test_cannot_reach_is_sound_and_leaves_the_solution_unchanged(seed):
     values = []
     for free in (left & ~right, left & ~right & ~found):
         x = np.where(right, 1.0, 0.0)
-        assert kernels.gauss_seidel(count, indptr, cols, vals, free, x, np.zeros(count), 1e-14, 100_000) >= 0
+        rows = np.flatnonzero(free)[::-1].copy()
+        assert kernels.gauss_seidel(indptr, cols, vals, rows, x, np.zeros(count), 1e-14, 100_000) >= 0
         values.append(x)
     assert np.array_equal(values[0][found], np.zeros(found.sum()))
     assert np.allclose(values[0], values[1], rtol=1e-12, atol=1e-12)
     # and against a direct solve on the states that can reach
-    solve = truly_unable | right | ~left
+    assert np.allclose(values[1], until_exactly(matrix, right, truly_unable | right | ~left), rtol=1e-9, atol=1e-10)
+
+
+def until_exactly(matrix, right, fixed):
+    """P[F right] by a direct solve, with the ``fixed`` states at 1 (right) or 0."""
     exact = np.where(right, 1.0, 0.0)
-    idx = np.flatnonzero(~solve)
+    idx = np.flatnonzero(~fixed)
     if len(idx):
         a = np.eye(len(idx)) - matrix[np.ix_(idx, idx)]
         b = matrix[np.ix_(idx, np.flatnonzero(right))].sum(axis=1)
         exact[idx] = np.linalg.solve(a, b)
-    assert np.allclose(values[1], exact, rtol=1e-9, atol=1e-10)
+    return exact
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_lumping_chains_of_single_transitions_keeps_the_solution(seed):
+    indptr, cols, vals, levels = random_dtmc(seed, single=0.5)
+    count = len(levels)
+    rng = np.random.default_rng(3000 + seed)
+    matrix = dense(indptr, cols, vals)
+    right = rng.random(count) < 0.1
+    free = ~right & reaches(matrix, right, np.ones(count, bool))
+    for cap in (count, 2):
+        through = kernels.pass_through(count, indptr, cols, vals, ~free, cap)
+        passed = through >= 0
+        assert not passed[0] and not (passed & ~free).any()
+        # walks end within cap steps (so cycles were cut)
+        for s in np.flatnonzero(passed):
+            u, steps = s, 0
+            while through[u] >= 0:
+                assert cols[indptr[u]] == through[u] and vals[indptr[u]] == 1.0
+                u, steps = through[u], steps + 1
+            assert steps <= cap
+        # probabilities: constant 0
+        x = np.where(right, 1.0, 0.0)
+        lumped = kernels.lump(count, indptr, cols, vals, through, np.zeros(count))
+        rows = np.flatnonzero(free & ~passed)[::-1].copy()
+        assert kernels.gauss_seidel(*lumped[:3], rows, x, lumped[3], 1e-14, 100_000) >= 0
+        exact = until_exactly(matrix, right, ~free)
+        assert np.allclose(x[~passed], exact[~passed], rtol=1e-9, atol=1e-10)
+        # rewards: the constants along a chain are added up
+        reward = rng.random(count) * free
+        x = np.zeros(count)
+        lumped = kernels.lump(count, indptr, cols, vals, through, reward)
+        assert kernels.gauss_seidel(*lumped[:3], rows, x, lumped[3], 1e-14, 100_000) >= 0
+        idx = np.flatnonzero(free)
+        expected = np.zeros(count)
+        expected[idx] = np.linalg.solve(np.eye(len(idx)) - matrix[np.ix_(idx, idx)], reward[idx])
+        assert np.allclose(x[~passed], expected[~passed], rtol=1e-9, atol=1e-10)

@@ -140,35 +140,127 @@ def cannot_reach(count, indptr, cols, right, through):
     return out
 
 
-@njit(cache=True, fastmath=True)
-def gauss_seidel(count, indptr, cols, vals, free, x, constant, tolerance, max_sweeps):
-    """Solve x = constant + P x on the ``free`` states, the others fixed at their x.
+@njit(cache=True)
+def pass_through(count, indptr, cols, vals, stop, cap):
+    """For each state that a solver can pass through, its successor, else -1.
 
-    Sweeps run from the last-discovered state back to the initial one; a state's self-loop
-    is solved for directly (its factor 1 / (1 - loop) computed once; a state that only
-    loops keeps its x). Stops when no value moves by more than ``tolerance`` relative to its
-    size (absolutely, below 1); returns the sweeps used, or -1 without convergence.
-    """
-    scale = np.zeros(count)
+    A state is passed through when its only transition goes with probability 1 to another
+    state and it is neither the initial state nor a ``stop`` state (robot_grid's check and
+    skip steps: two thirds of the states). Chains of such states are cut on cycles and
+    after ``cap`` states (a state of the chain is made an end), so a walk from any state
+    meets an end within ``cap`` steps."""
+    through = np.full(count, -1, dtype=np.int64)
+    for s in range(1, count):
+        e = indptr[s]
+        if not stop[s] and indptr[s + 1] - e == 1 and cols[e] != s and vals[e] == 1.0:
+            through[s] = cols[e]
+    depth = np.full(count, -1, dtype=np.int64)  # states passed before an end; -2: on the walk
+    path = np.empty(count, dtype=np.int64)
     for s in range(count):
-        if free[s]:
-            loop = 0.0
+        if depth[s] != -1:
+            continue
+        top = 0
+        u = s
+        while through[u] >= 0 and depth[u] == -1:
+            depth[u] = -2
+            path[top] = u
+            top += 1
+            u = through[u]
+        if depth[u] == -2:  # the walk came back to u: cut the cycle there
+            through[u] = -1
+        if through[u] < 0:
+            depth[u] = 0
+        for i in range(top - 1, -1, -1):
+            v = path[i]
+            if through[v] < 0:
+                depth[v] = 0
+                continue
+            d = depth[through[v]] + 1
+            if d > cap:
+                through[v] = -1
+                d = 0
+            depth[v] = d
+    return through
+
+
+@njit(cache=True)
+def lump(count, indptr, cols, vals, through, constant):
+    """The equations x = constant + P x with the passed-through states substituted: their
+    rows are emptied, and an entry to one goes to the end of its chain instead, the
+    constants along the chain added to the row's constant (x[s] = constant[s] + x[next])."""
+    end = np.arange(count)
+    along = np.zeros(count)
+    path = np.empty(count, dtype=np.int64)
+    for s in range(count):
+        if through[s] < 0 or end[s] != s:
+            continue
+        top = 0
+        u = s
+        while through[u] >= 0 and end[u] == u:
+            path[top] = u
+            top += 1
+            u = through[u]
+        for i in range(top - 1, -1, -1):
+            v = path[i]
+            nxt = through[v]
+            if through[nxt] >= 0:
+                end[v] = end[nxt]
+                along[v] = constant[v] + along[nxt]
+            else:
+                end[v] = nxt
+                along[v] = constant[v]
+    lumped_ptr = np.zeros(count + 1, dtype=np.int64)
+    lumped_cols = np.empty(indptr[count], dtype=np.int64)
+    lumped_vals = np.empty(indptr[count], dtype=np.float64)
+    lumped_constant = constant.copy()
+    k = 0
+    for s in range(count):
+        if through[s] < 0:
             for e in range(indptr[s], indptr[s + 1]):
-                if cols[e] == s:
-                    loop += vals[e]
-            if loop < 1.0:
-                scale[s] = 1.0 / (1.0 - loop)
+                t = cols[e]
+                if through[t] >= 0:
+                    lumped_constant[s] += vals[e] * along[t]
+                    t = end[t]
+                lumped_cols[k] = t
+                lumped_vals[k] = vals[e]
+                k += 1
+        lumped_ptr[s + 1] = k
+    return lumped_ptr, lumped_cols[:k], lumped_vals[:k], lumped_constant
+
+
+@njit(cache=True, fastmath=True)
+def gauss_seidel(indptr, cols, vals, rows, x, constant, tolerance, max_sweeps):
+    """Solve x = constant + P x on the states ``rows`` (in this order), the others fixed at
+    their x.
+
+    A state's self-loop is solved for directly (its factor 1 / (1 - loop) computed once; a
+    state that only loops keeps its x). Stops when no value moves by more than
+    ``tolerance`` relative to its size (absolutely, below 1); returns the sweeps used, or
+    -1 without convergence.
+    """
+    n = rows.shape[0]
+    scale = np.zeros(n)
+    for i in range(n):
+        s = rows[i]
+        loop = 0.0
+        for e in range(indptr[s], indptr[s + 1]):
+            if cols[e] == s:
+                loop += vals[e]
+        if loop < 1.0:
+            scale[i] = 1.0 / (1.0 - loop)
     for sweep in range(max_sweeps):
         change = 0.0
-        for s in range(count - 1, -1, -1):
-            if scale[s] == 0.0:
+        for i in range(n):
+            factor = scale[i]
+            if factor == 0.0:
                 continue
+            s = rows[i]
             total = constant[s]
             for e in range(indptr[s], indptr[s + 1]):
                 t = cols[e]
                 if t != s:
                     total += vals[e] * x[t]
-            value = total * scale[s]
+            value = total * factor
             delta = abs(value - x[s])
             size = abs(value)
             if size > 1.0:

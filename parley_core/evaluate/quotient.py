@@ -417,7 +417,7 @@ class QuotientSolver:
             # singular. One cheap pass finds most of them and leaves them out of the sweeps.
             free = left & ~right & ~kernels.cannot_reach(count, indptr, cols, right, left)
             x = np.where(right, 1.0, 0.0)
-            if kernels.gauss_seidel(count, indptr, cols, vals, free, x, np.zeros(count), TOLERANCE, MAX_SWEEPS) >= 0:
+            if self._sweeps(count, indptr, cols, vals, free, x, np.zeros(count)):
                 return float(x[0])
             can = kernels.backward_reach(count, indptr, cols, right, left)
             x = np.where(right, 1.0, 0.0)
@@ -455,9 +455,18 @@ class QuotientSolver:
             return self._gauss_seidel(count, indptr, cols, vals, free, np.zeros(count), np.where(free, reward, 0.0))
         raise ValueError(objective.kind)
 
+    def _sweeps(self, count, indptr, cols, vals, free, x, constant) -> bool:
+        """Gauss-Seidel for x = constant + P x on the ``free`` states, in reverse breadth-first
+        order, with the states that only pass probability on (one transition, probability
+        1) substituted away; x[0] holds the value when it returns True (converged)."""
+        through = kernels.pass_through(count, indptr, cols, vals, ~free, count)
+        lumped = kernels.lump(count, indptr, cols, vals, through, constant)
+        rows = np.flatnonzero(free & (through < 0))[::-1].copy()
+        return kernels.gauss_seidel(*lumped[:3], rows, x, lumped[3], TOLERANCE, MAX_SWEEPS) >= 0
+
     def _gauss_seidel(self, count, indptr, cols, vals, free, x, constant) -> float:
-        sweeps = kernels.gauss_seidel(count, indptr, cols, vals, free, x, constant, TOLERANCE, MAX_SWEEPS)
-        if sweeps < 0:  # no convergence: a direct solve on the free states
+        if not self._sweeps(count, indptr, cols, vals, free, x, constant):
+            # no convergence: a direct solve on the free states
             idx = np.flatnonzero(free)
             matrix = sp.csr_matrix((vals, cols, indptr), shape=(count, count))
             sub = matrix[idx][:, idx]
