@@ -312,21 +312,12 @@ def cumulative(count, indptr, cols, vals, steps, rewards, levels):
     quarter of the rows of the backward iteration (x = reward + P x, ``steps`` times), as
     the mass sits in one phase of the turn at each step."""
     n_rewards = rewards.shape[0]
-    idle = np.zeros(count, dtype=np.bool_)
-    for s in range(count - 1, -1, -1):
-        earns = False
-        for r in range(n_rewards):
+    earns = np.zeros(count, dtype=np.bool_)
+    for r in range(n_rewards):
+        for s in range(count):
             if rewards[r, s] != 0.0:
-                earns = True
-        if earns:
-            continue
-        idle_here = True
-        for e in range(indptr[s], indptr[s + 1]):
-            t = cols[e]
-            if t != s and not idle[t]:
-                idle_here = False
-                break
-        idle[s] = idle_here
+                earns[s] = True
+    idle = cannot_reach(count, indptr, cols, earns, np.ones(count, dtype=np.bool_))
     mass = np.zeros(count)
     pushed = np.zeros(count)
     visits = np.zeros(count)  # expected visits within the bound; the rewards are weighed at the end
