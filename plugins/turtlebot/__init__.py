@@ -1,0 +1,159 @@
+"""turtlebot: the paper's continuous robot (RQ4), a TurtleBot3 Waffle with a weak left wheel.
+
+A robot crosses a 21 m x 21 m area of 3 m cells (7x7) to a target, past obstacles, by a
+shortest-path movement controller that acts on its *estimated* cell; it has no sensors, and
+its heading (four directions) is uncertain too: the left wheel runs at 99 % power, so the
+robot drifts. A localisation service (energy 5, a move costs 1) sets the estimated cell and
+heading to the true ones. The URC decides, per estimated cell and heading, after how many
+moves to localise (1..5). The motion table comes from the paper's Gazebo samples (option
+``model``: its ``models/turtlebot/model.prism``) or, by default, from a kinematic Monte
+Carlo of its own. Details and the comparison with the paper: docs/turtlebot.md.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import attrs
+from attrs import field, frozen, validators
+
+from parley_core import Baseline, CaseStudy, DecisionKind, Direction, Objective, OptionError, Service, SystemModel, hookimpl
+from parley_plugins.turtlebot import published
+from parley_plugins.turtlebot.generator import prism_model
+from parley_plugins.turtlebot.kinematics import simulate
+from parley_plugins.turtlebot.world import World, check, parse_cells, shortest_moves
+
+PAPER_OBSTACLES = "0:3,0:4,0:5,1:3,2:3,3:3,4:0,4:1,5:1,4:4,4:6,5:6"
+"""The cells where the paper's sampled motions crash (and which its model gives no motions)."""
+
+
+def _positive(_instance, attribute, value) -> None:
+    if value <= 0:
+        raise ValueError(f"option {attribute.name} must be positive, got {value}")
+
+
+_fraction = [validators.gt(0.0), validators.le(1.0)]
+
+
+@frozen(kw_only=True)
+class TurtlebotOptions:
+    model: Path | None = field(
+        default=None,
+        metadata={"help": "the paper's models/turtlebot/model.prism: use its Gazebo-sampled motions and controller; default: simulate"},
+    )
+    repair: bool = field(
+        default=True, metadata={"help": "with model=: read its [south] moves as meant (the file sends them to the top row)"}
+    )
+    size: int = field(default=7, validator=validators.ge(2), metadata={"help": "cells per side (simulated motions)"})
+    start: str = field(default="1:0", metadata={"help": "start cell X:Y (simulated motions)"})
+    target: str = field(default="3:5", metadata={"help": "target cell X:Y (simulated motions)"})
+    obstacles: str = field(default=PAPER_OBSTACLES, metadata={"help": "obstacle cells X:Y,X:Y,... (simulated motions)"})
+    left_wheel: float = field(default=0.99, validator=_fraction, metadata={"help": "left wheel power relative to the right one"})
+    heading_noise: float = field(default=8.0, validator=validators.ge(0.0), metadata={"help": "heading error, standard deviation in degrees"})
+    turn_noise: float = field(default=5.0, validator=validators.ge(0.0), metadata={"help": "extra heading error per quarter turn, degrees"})
+    samples: int = field(default=1000, validator=_positive, metadata={"help": "Monte Carlo draws per cell, heading and move"})
+    seed: int = field(default=0, metadata={"help": "seed of the Monte Carlo draws"})
+    max_period: int = field(default=5, validator=_positive, metadata={"help": "longest localisation period (moves)"})
+    horizon: int = field(
+        default=200, validator=_positive, metadata={"help": "steps of the energy objective C<=horizon (a move is 3 steps)"}
+    )
+    move_cost: float = field(default=1.0, validator=validators.ge(0.0), metadata={"help": "energy of a move"})
+    localisation_cost: float = field(default=5.0, validator=validators.ge(0.0), metadata={"help": "energy of a localisation"})
+
+
+def world_of(options: TurtlebotOptions) -> World:
+    if options.model is not None:
+        return check(published.load(options.model, repair=options.repair))
+    (start,) = _one_cell(options.start, "start")
+    (target,) = _one_cell(options.target, "target")
+    obstacles = parse_cells(options.obstacles, "option obstacles")
+    world = World(
+        size=options.size,
+        start=start,
+        target=target,
+        obstacles=obstacles,
+        motions={},
+        plan={},
+        source=f"simulated, left wheel {options.left_wheel:g}, seed {options.seed}",
+    )
+    check(world)
+    motions = simulate(
+        options.size,
+        frozenset(obstacles),
+        left_wheel=options.left_wheel,
+        heading_noise=options.heading_noise,
+        turn_noise=options.turn_noise,
+        samples=options.samples,
+        seed=options.seed,
+    )
+    return check(
+        attrs.evolve(world, motions=motions, plan=shortest_moves(options.size, frozenset(obstacles), target))
+    )
+
+
+def _one_cell(text: str, name: str) -> tuple:
+    cells = parse_cells(text, f"option {name}")
+    if len(cells) != 1:
+        raise OptionError(f"option {name}={text!r}: give one cell X:Y, e.g. {name}=1:0")
+    return tuple(cells)
+
+
+def build(options: TurtlebotOptions) -> SystemModel:
+    world = world_of(options)
+    text = prism_model(
+        world, max_period=options.max_period, move_cost=options.move_cost, localisation_cost=options.localisation_cost
+    )
+    return SystemModel(
+        name="turtlebot",
+        description=f"turtlebot on {world.size}x{world.size} cells, motions {world.source}",
+        prism=text,
+        services=[
+            Service(
+                name="localisation",
+                constant="c",
+                kind=DecisionKind.FREQUENCY,
+                low=1,
+                high=options.max_period,
+                description="localise once the move counter reaches c (every c-th move)",
+            )
+        ],
+        observation=("xhat", "yhat", "directionhat"),
+        objectives=[
+            Objective(
+                name="success",
+                formula='P=? [F "goal"]',
+                direction=Direction.MAX,
+                description="probability of reaching the target without crashing or leaving the area",
+                reference=0.0,
+            ),
+            Objective(
+                name="energy",
+                formula=f'R{{"energy"}}=? [C<={options.horizon}]',
+                direction=Direction.MIN,
+                description=f"expected energy of moves and localisations within {options.horizon} steps",
+            ),
+        ],
+        baselines=[Baseline(name=f"period-{k}", values={"c": k}) for k in range(1, options.max_period + 1)],
+        context=world,
+    )
+
+
+def plot_policy(system: SystemModel, table, path: Path) -> None:
+    from parley_plugins.turtlebot.plot import draw_policy
+
+    draw_policy(system.context, {valuation: values["c"] for valuation, values in table.items()}, path)
+
+
+CASE_STUDY = CaseStudy(
+    name="turtlebot",
+    description="TurtleBot3 with a drifting wheel: when to localise, per estimated cell and heading (the paper's RQ4)",
+    options_type=TurtlebotOptions,
+    build=build,
+    plot_policy=plot_policy,
+    quick={"samples": "100", "horizon": "60", "max_period": "3"},
+)
+
+
+@hookimpl
+def parley_case_studies() -> list[CaseStudy]:
+    return [CASE_STUDY]

@@ -1,0 +1,142 @@
+"""The turtlebot DTMC, with the localisation period as the constant ``c``.
+
+The structure follows the paper's ``models/turtlebot/model.prism`` so that a policy gets the
+same values on both (scripts/check_turtlebot.py compares them with Storm):
+
+- ``Robot``: the true cell (x, y) and heading ``direction``; a move command draws its
+  outcome from the motion table of the true cell and heading: a neighbouring cell and new
+  heading, ``crashed`` or ``out`` (left the area), after which the robot stays where it
+  was and only idles (``stuck``). A cell without table entries (an obstacle) has no move.
+- ``Controller`` (the UAC): one move per estimated cell (xhat, yhat), none at the target.
+- ``Knowledge``: the estimate (xhat, yhat, directionhat), updated as if every move went as
+  commanded, and the move counter ``step`` (1 after a localisation); ``localise``
+  (step >= c) sets the estimate to the truth, ``skip`` (step < c) counts on.
+- ``Turn``: move, localise or skip, then an idle step: one move is three DTMC steps.
+
+Rewards "energy": ``move_cost`` per move, ``localisation_cost`` per localisation; "time":
+1 per move.
+"""
+
+from __future__ import annotations
+
+from parley_core.prism.writer import (
+    Command,
+    Constant,
+    Label,
+    Module,
+    Program,
+    RewardItem,
+    Rewards,
+    Update,
+    Variable,
+    conjunction,
+)
+from parley_plugins.turtlebot.world import HEADINGS, Outcome, World
+
+_ESTIMATE = {
+    "north": {"yhat": "min(yhat+1, N)", "directionhat": "0"},
+    "east": {"xhat": "min(xhat+1, N)", "directionhat": "1"},
+    "south": {"yhat": "max(yhat-1, 0)", "directionhat": "2"},
+    "west": {"xhat": "max(xhat-1, 0)", "directionhat": "3"},
+}
+
+
+def prism_model(world: World, *, max_period: int, move_cost: float, localisation_cost: float) -> str:
+    """The DTMC text of ``world`` (its motion table and movement controller)."""
+    robot_commands = [
+        Command(
+            action=move,
+            guard=f"x={x} & y={y} & direction={heading}",
+            updates=[Update(assignments=_assignments(outcome, x, y), probability=p) for outcome, p in outcomes],
+        )
+        for (x, y, heading, move), outcomes in sorted(world.motions.items(), key=lambda item: _order(item[0]))
+    ]
+    robot_commands.append(Command(action="stuck", guard="crashed=1 | out=1"))
+    robot = Module(
+        name="Robot",
+        variables=[
+            Variable(name="x", low=0, high="N", init=world.start[0], comment="true cell"),
+            Variable(name="y", low=0, high="N", init=world.start[1]),
+            Variable(name="direction", low=0, high=3, init=0, comment="true heading: 0 north, 1 east, 2 south, 3 west"),
+            Variable(name="crashed", low=0, high=1, init=0),
+            Variable(name="out", low=0, high=1, init=0, comment="left the area"),
+        ],
+        commands=robot_commands,
+    )
+    planned = sorted(world.plan.items(), key=lambda item: (HEADINGS.index(item[1]), item[0]))
+    controller = Module(
+        name="Controller",
+        commands=[
+            *(Command(action=move, guard=f"xhat={x} & yhat={y} & crashed=0 & out=0") for (x, y), move in planned),
+            *(Command(action=move, guard="false") for move in HEADINGS if move not in world.plan.values()),
+        ],
+    )
+    knowledge = Module(
+        name="Knowledge",
+        variables=[
+            Variable(name="xhat", low=0, high="N", init=world.start[0], comment="estimated cell"),
+            Variable(name="yhat", low=0, high="N", init=world.start[1]),
+            Variable(name="directionhat", low=0, high=3, init=0, comment="estimated heading"),
+            Variable(name="step", low=1, high="maxStep", init=1, comment="moves since the last localisation"),
+        ],
+        commands=[
+            *(Command(action=move, updates=[Update(assignments=_ESTIMATE[move])]) for move in HEADINGS),
+            Command(
+                action="localise",
+                guard="step>=c",
+                updates=[Update(assignments={"xhat": "x", "yhat": "y", "directionhat": "direction", "step": "1"})],
+            ),
+            Command(action="skip", guard="step<c", updates=[Update(assignments={"step": "step+1"})]),
+        ],
+    )
+    turn = Module(
+        name="Turn",
+        variables=[Variable(name="t", low=0, high=2, init=0, comment="0 move, 1 localise or skip, 2 idle")],
+        commands=[
+            *(Command(action=move, guard="t=0", updates=[Update(assignments={"t": "1"})]) for move in HEADINGS),
+            Command(action="localise", guard="t=1", updates=[Update(assignments={"t": "2"})]),
+            Command(action="skip", guard="t=1", updates=[Update(assignments={"t": "2"})]),
+            Command(guard="t=2", updates=[Update(assignments={"t": "0"})]),
+        ],
+    )
+    tx, ty = world.target
+    program = Program(
+        header=(
+            f"turtlebot: {world.size}x{world.size} cells ({world.source}); start {world.start}, target {world.target}.\n"
+            "The localisation service runs once the move counter reaches c (every c-th move)."
+        ),
+        constants=[
+            Constant(name="N", value=world.size - 1, comment="largest x and y"),
+            Constant(name="maxStep", value=max_period),
+            Constant(name="c", comment=f"localisation period in moves, 1..{max_period}"),
+        ],
+        modules=[robot, controller, knowledge, turn],
+        rewards=[
+            Rewards(
+                name="energy",
+                items=[
+                    RewardItem(action="localise", value=localisation_cost),
+                    *(RewardItem(action=move, value=move_cost) for move in HEADINGS),
+                ],
+            ),
+            Rewards(name="time", items=[RewardItem(action=move, value=1) for move in HEADINGS]),
+        ],
+        labels=[
+            Label(name="goal", expression=conjunction([f"x={tx}", f"y={ty}", "crashed=0", "out=0"])),
+            Label(name="crashed", expression="crashed=1"),
+            Label(name="out", expression="out=1"),
+        ],
+    )
+    return program.render()
+
+
+def _assignments(outcome: Outcome, x: int, y: int) -> dict[str, str]:
+    if outcome.kind != "move":
+        return {{"crash": "crashed", "out": "out"}[outcome.kind]: "1"}
+    return {"x": str(x + outcome.dx), "y": str(y + outcome.dy), "direction": str(outcome.heading)}
+
+
+def _order(key: tuple[int, int, int, str]) -> tuple:
+    x, y, heading, move = key
+    return (HEADINGS.index(move), x, y, heading)
+
