@@ -239,7 +239,7 @@ def _constraints(texts: list[str] | None):
 def _synthesise(prepare_with, settings, out: Path, force: bool, evaluator: str, workers: int | None) -> None:
     """Prepare, search, verify, write and print a run (shared by `run` and `synthesize`)."""
     from parley_core.pipeline import run
-    from parley_core.report import check_output, summary, write_run
+    from parley_core.report import PLOT_ERROR, check_output, summary, write_run
 
     console = Console()
     check_output(out, force)
@@ -247,7 +247,9 @@ def _synthesise(prepare_with, settings, out: Path, force: bool, evaluator: str, 
         prepared = prepare_with(reporter)
         result = run(prepared, settings, evaluator=evaluator, workers=workers, reporter=reporter)
         reporter.stage("write report")
-        write_run(result, out, force=force)
+        written = write_run(result, out, force=force)
+    if out / PLOT_ERROR in written:
+        console.print(f"[yellow]warning:[/] the policy plot failed; the run is complete without it ({out / PLOT_ERROR} says why)")
     info = summary(result)
     constants = [s.constant for s in result.family.system.services]
     console.print(_front_table(f"Pareto front: {len(result.front)} policies, values checked by Storm", result.front))

@@ -13,6 +13,7 @@ import os
 import platform
 import shutil
 import tempfile
+import traceback
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -146,6 +147,10 @@ def plot_front(result: RunResult, path: Path) -> None:
     plt.close(fig)
 
 
+PLOT_ERROR = "policy-plot-error.txt"
+"""Written instead of policy.png when a plugin's ``plot_policy`` raises."""
+
+
 def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path]:
     """Write the run directory; returns the files written."""
     check_output(out, force)
@@ -167,7 +172,14 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path
         case = result.prepared.case
         if case.plot_policy is not None:
             selected = result.front.policies[result.selected]
-            case.plot_policy(result.prepared.system, policy_files.table(family, selected), staging / "policy.png")
+            try:
+                case.plot_policy(result.prepared.system, policy_files.table(family, selected), staging / "policy.png")
+            except Exception as exc:  # a plugin's drawing must not cost the verified results
+                (staging / "policy.png").unlink(missing_ok=True)
+                (staging / PLOT_ERROR).write_text(
+                    f"the {case.name} plugin's plot_policy failed, so there is no policy.png:\n"
+                    + "".join(traceback.format_exception(exc))
+                )
         _move_into_place(staging, out)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)

@@ -82,3 +82,28 @@ def test_tiny_search_gives_a_front_that_storm_confirms(prepared, tmp_path):
 
 def test_stormpy_is_the_checker():
     assert stormpy.__version__.startswith("2.")
+
+
+def test_a_failing_policy_plot_costs_only_the_plot(toy, tmp_path):
+    from attrs import frozen
+
+    from parley_core import CaseStudy
+    from parley_core.augment import augment
+    from parley_core.pipeline import Prepared
+    from parley_core.report import PLOT_ERROR
+
+    @frozen
+    class NoOptions:
+        pass
+
+    def broken_plot(system, table, path):
+        path.write_bytes(b"half a png")
+        raise RuntimeError("the plugin's drawing is broken")
+
+    case = CaseStudy(name="toy", description="toy", options_type=NoOptions, build=lambda _: toy, plot_policy=broken_plot)
+    prepared = Prepared(case=case, options=NoOptions(), system=toy, family=augment(toy))
+    result = run(prepared, SearchSettings(population=6, generations=2, seed=1), workers=1)
+    written = {p.name for p in write_run(result, tmp_path / "run")}
+    assert {"front.csv", "policies.csv", "summary.json", PLOT_ERROR} <= written
+    assert "policy.png" not in written
+    assert "the plugin's drawing is broken" in (tmp_path / "run" / PLOT_ERROR).read_text()

@@ -51,6 +51,9 @@ class TurtlebotOptions:
     left_wheel: float = field(default=0.99, validator=_fraction, metadata={"help": "left wheel power relative to the right one"})
     heading_noise: float = field(default=8.0, validator=validators.ge(0.0), metadata={"help": "heading error, standard deviation in degrees"})
     turn_noise: float = field(default=5.0, validator=validators.ge(0.0), metadata={"help": "extra heading error per quarter turn, degrees"})
+    distance_noise: float = field(
+        default=0.05, validator=validators.ge(0.0), metadata={"help": "error of a move's length, relative standard deviation"}
+    )
     samples: int = field(default=1000, validator=_positive, metadata={"help": "Monte Carlo draws per cell, heading and move"})
     seed: int = field(default=0, metadata={"help": "seed of the Monte Carlo draws"})
     max_period: int = field(default=5, validator=_positive, metadata={"help": "longest localisation period (moves)"})
@@ -83,6 +86,7 @@ def world_of(options: TurtlebotOptions) -> World:
         left_wheel=options.left_wheel,
         heading_noise=options.heading_noise,
         turn_noise=options.turn_noise,
+        distance_noise=options.distance_noise,
         samples=options.samples,
         seed=options.seed,
     )
