@@ -32,6 +32,10 @@ class CaseStudy:
       conformance suite runs every case study with them.
     - ``requirement_settings`` are campaign reports' default settings: one worst acceptable
       value per objective each (robot_grid: the paper's nine, e.g. success >= 0.7, cost <= 80).
+    - ``prune``: decide only at the observation valuations where a service is consulted in
+      some reachable state (found on the quotient MDP), as ``parley synthesize`` does. Off by
+      default, so that a policy has one value per valuation in the variables' ranges (as the
+      paper's published policies have); worth it where most valuations are never consulted.
     """
 
     name: str = field(validator=validators.matches_re(r"[a-z][a-z0-9_]*"))
@@ -43,6 +47,7 @@ class CaseStudy:
     requirement_settings: tuple[tuple[float, ...], ...] = field(
         default=(), converter=lambda rows: tuple(tuple(float(v) for v in row) for row in rows)
     )
+    prune: bool = False
 
     @options_type.validator
     def _check_options_type(self, _attribute: attrs.Attribute, value: type) -> None:

@@ -336,19 +336,14 @@ def synthesize_command(
     workers: WorkersOption = None,
 ) -> None:
     """Synthesise a URC for your own PRISM model: the same pipeline and run directory as `parley run`."""
-    from parley_core.augment import augment
-    from parley_core.pipeline import Prepared
+    from parley_core.pipeline import prepare
     from parley_core.search import SearchSettings
     from parley_core.usermodel import FileOptions, case_study_for, system_from_file
 
     def prepare_with(reporter):
         reporter.stage("read model")
         system = system_from_file(model, decision, observe, props, maximize or [], minimize or [])
-        reporter.stage("augment")
-        family = augment(system, prune=True)
-        if family.left_out:
-            reporter.note(f"{len(family.left_out)} observation valuations never consult a service and are left out")
-        return Prepared(case=case_study_for(system, model), options=FileOptions(model=str(model)), system=system, family=family)
+        return prepare(case_study_for(system, model), FileOptions(model=str(model)), reporter)
 
     settings = SearchSettings(population=population, generations=generations, seed=seed, constraints=_constraints(constraint))
     out = out or Path("runs") / f"{model.stem}-{time.strftime('%Y%m%d-%H%M%S')}"

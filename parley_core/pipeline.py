@@ -76,7 +76,9 @@ def prepare(case: CaseStudy, options: Any, reporter: Reporter | None = None) -> 
         system = case.build(options)
     reporter.stage("augment")
     with _timed(timings, "augment"):
-        family = augment(system)
+        family = augment(system, prune=case.prune)
+    if family.left_out:
+        reporter.note(f"{len(family.left_out)} observation valuations never consult a service and are left out")
     return Prepared(case=case, options=options, system=system, family=family, timings=timings)
 
 

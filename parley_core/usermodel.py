@@ -203,6 +203,7 @@ def case_study_for(system: SystemModel, path: Path) -> CaseStudy:
         description=f"user model {path}",
         options_type=FileOptions,
         build=lambda _options: system,
+        prune=True,
     )
 
 

@@ -38,7 +38,7 @@ def measure(
     workers: int = 2,
     seed: int = 0,
 ) -> dict[str, Any]:
-    family = augment(case.build(case.options(assignments)))
+    family = augment(case.build(case.options(assignments)), prune=case.prune)
     rng = np.random.default_rng(seed)
     lows, highs = np.array(family.lows), np.array(family.highs)
     policies = rng.integers(lows, highs + 1, size=(max(storm_policies, quotient_policies), len(family.decisions)))

@@ -165,3 +165,18 @@ def test_without_noise_the_robot_follows_its_plan_and_never_needs_localising():
     never = {d.name: 5 for d in family.decisions}
     success, = storm_values(family.prism, ['P=? [F "goal"]'], never)
     assert success == pytest.approx(1.0, abs=1e-12)
+
+
+def test_runs_decide_only_where_the_service_is_consulted():
+    from parley_core.pipeline import prepare
+
+    prepared = prepare(CASE, CASE.options(SMALL))
+    family, world = prepared.family, world_of(prepared.options)
+    assert family.left_out and len(family.valuations) + len(family.left_out) == 4 * 4 * 4
+    consulted = set()
+    for k in range(1, 4):
+        order, _, _ = Reference(world, {v: k for v in [*family.valuations, *family.left_out]}).chain()
+        consulted |= {(s[4], s[5], s[6]) for s in order if s[0] == 1}
+    assert consulted <= set(family.valuations)
+    # the estimated heading at a decision is that of the move just made, so most are never consulted
+    assert len(family.valuations) < 4 * 4 * 2
