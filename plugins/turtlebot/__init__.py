@@ -55,7 +55,7 @@ class TurtlebotOptions:
         default=0.05, validator=validators.ge(0.0), metadata={"help": "error of a move's length, relative standard deviation"}
     )
     samples: int = field(default=1000, validator=_positive, metadata={"help": "Monte Carlo draws per cell, heading and move"})
-    seed: int = field(default=0, metadata={"help": "seed of the Monte Carlo draws"})
+    motion_seed: int = field(default=0, metadata={"help": "seed of the Monte Carlo draws of the motions (the search has its own, --seed)"})
     max_period: int = field(default=5, validator=_positive, metadata={"help": "longest localisation period (moves)"})
     horizon: int = field(
         default=200, validator=_positive, metadata={"help": "steps of the energy objective C<=horizon (a move is 3 steps)"}
@@ -64,11 +64,21 @@ class TurtlebotOptions:
     localisation_cost: float = field(default=5.0, validator=validators.ge(0.0), metadata={"help": "energy of a localisation"})
 
 
+SIMULATION_OPTIONS = ("size", "start", "target", "obstacles", "left_wheel", "heading_noise", "turn_noise", "distance_noise", "samples", "motion_seed")
+"""The options that shape simulated motions; the paper's model file fixes all of them."""
+
+
 def world_of(options: TurtlebotOptions) -> World:
     if options.model is not None:
+        defaults = {f.name: f.default for f in attrs.fields(TurtlebotOptions)}
+        changed = [name for name in SIMULATION_OPTIONS if getattr(options, name) != defaults[name]]
+        if changed:
+            raise OptionError(
+                f"option {changed[0]} shapes simulated motions, but model= gives the paper's; drop one of them"
+            )
         return check(published.load(options.model, repair=options.repair))
-    (start,) = _one_cell(options.start, "start")
-    (target,) = _one_cell(options.target, "target")
+    start = _one_cell(options.start, "start")
+    target = _one_cell(options.target, "target")
     obstacles = parse_cells(options.obstacles, "option obstacles")
     world = World(
         size=options.size,
@@ -77,29 +87,27 @@ def world_of(options: TurtlebotOptions) -> World:
         obstacles=obstacles,
         motions={},
         plan={},
-        source=f"simulated, left wheel {options.left_wheel:g}, seed {options.seed}",
+        source=f"simulated, left wheel {options.left_wheel:g}, motion seed {options.motion_seed}",
     )
     check(world)
     motions = simulate(
         options.size,
-        frozenset(obstacles),
+        obstacles,
         left_wheel=options.left_wheel,
         heading_noise=options.heading_noise,
         turn_noise=options.turn_noise,
         distance_noise=options.distance_noise,
         samples=options.samples,
-        seed=options.seed,
+        seed=options.motion_seed,
     )
-    return check(
-        attrs.evolve(world, motions=motions, plan=shortest_moves(options.size, frozenset(obstacles), target))
-    )
+    return check(attrs.evolve(world, motions=motions, plan=shortest_moves(options.size, obstacles, target)))
 
 
-def _one_cell(text: str, name: str) -> tuple:
+def _one_cell(text: str, name: str) -> tuple[int, int]:
     cells = parse_cells(text, f"option {name}")
     if len(cells) != 1:
         raise OptionError(f"option {name}={text!r}: give one cell X:Y, e.g. {name}=1:0")
-    return tuple(cells)
+    return next(iter(cells))
 
 
 def build(options: TurtlebotOptions) -> SystemModel:

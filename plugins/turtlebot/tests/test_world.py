@@ -52,6 +52,11 @@ def test_bad_options_say_what_to_change(setting, message):
         CASE.build(CASE.options([setting]))
 
 
+def test_simulation_options_do_not_mix_with_the_papers_motions(tmp_path):
+    with pytest.raises(OptionError, match="option heading_noise shapes simulated motions"):
+        CASE.build(CASE.options([f"model={tmp_path / 'model.prism'}", "heading_noise=3"]))
+
+
 def test_a_missing_published_model_is_a_clear_error(tmp_path):
     with pytest.raises(OptionError, match="models/turtlebot/model.prism"):
         CASE.build(CASE.options([f"model={tmp_path / 'nope.prism'}"]))
