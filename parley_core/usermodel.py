@@ -130,12 +130,7 @@ def system_from_file(
         if constant.defined and constant.type.is_integer and not constant.definition.get_variables():
             if prism.fixed_int(constant.definition) is None:
                 raise ModelError(f"constant {constant.name} = {constant.definition} is not a finite integer; fix its definition")
-    crash = prism.build_crashes(program, {s.constant: s.low for s in services})
-    if crash is not None:
-        raise ModelError(
-            f"Storm crashes (signal {crash}) building model {path}, most likely on an integer division by zero "
-            "in a guard, update or probability; fix the expression"
-        )
+    _check_storm_survives(path, lambda: program, {s.constant: s.low for s in services})
     baselines = []
     for service in services:
         if service.constant not in constants:
@@ -175,7 +170,7 @@ def system_from_file(
         if key not in seen:
             seen.add(key)
             unique.append(baseline)
-    return SystemModel(
+    system = SystemModel(
         name=_identifier(path.stem),
         prism=text,
         services=services,
@@ -184,6 +179,28 @@ def system_from_file(
         baselines=unique,
         description=f"user model {path}",
     )
+    # the lowest values are built above; the quotient holds every value (and is what parley builds next)
+    _check_storm_survives(path, lambda: _quotient_program(system), {})
+    return system
+
+
+def _quotient_program(system: SystemModel):
+    from parley_core.augment import augment
+    from parley_core.evaluate.quotient import quotient_program
+
+    return prism.parse_program(quotient_program(augment(system))[0])
+
+
+def _check_storm_survives(path: Path, make, values) -> None:
+    """Storm kills the whole process with SIGFPE on an integer division by zero in a guard,
+    update or probability, also one that only some decision values or states reach: build
+    ``make()`` in a forked child first."""
+    crash = prism.build_crashes(make, values)
+    if crash is not None:
+        raise ModelError(
+            f"Storm crashes (signal {crash}) building model {path}, most likely on an integer division by zero "
+            "in a guard, update or probability (for some decision value); fix the expression"
+        )
 
 
 def _identifier(stem: str) -> str:

@@ -159,6 +159,8 @@ def test_missing_files_and_existing_output(files):
         ("step : [1..c]", "step : [1..1/0]", "variable step has a bound (1 / 0) that is not a finite integer"),
         ("const int c = 2;", "const int c = 1/0;", "constant c = (1 / 0) is not a finite integer"),
         ("[wait] step<c & h=1", "[wait] step<c & h=1/0", "Storm crashes (signal 8)"),
+        # only the decision value c=3 divides by zero, and only in states where h=1
+        ("[wait] step<c & h=1 ", "[wait] step<c & h=1 & h!=1/(c-3) ", "Storm crashes (signal 8)"),
     ],
 )
 def test_a_division_by_zero_is_an_error_not_a_crash(tmp_path, old, new, message):

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 
 import stormpy
 import stormpy.developer as storm_dev
@@ -92,12 +92,13 @@ def find_variable(program: PrismProgram, name: str):
     return None
 
 
-def build_crashes(program: PrismProgram, values: Mapping[str, int]) -> int | None:
-    """Build ``program`` (its undefined constants set to ``values``) in a forked child and
-    return the signal that killed it, or None. Storm's builder kills the whole process with
-    SIGFPE on an integer division by zero in a guard, update or probability, and so does
-    its constant substitution on ``const int k = c/0`` (found by the fuzz test); a user's
-    model must not take parley down with it."""
+def build_crashes(make: Callable[[], PrismProgram], values: Mapping[str, int]) -> int | None:
+    """Make a program with ``make``, set its undefined constants to ``values`` and build it,
+    all in a forked child; return the signal that killed the child, or None (also when it
+    raised: the parent reports errors when it does the same work). Storm's builder kills the
+    whole process with SIGFPE on an integer division by zero in a guard, update or
+    probability, and so does its constant substitution on ``const int k = c/0`` (found by the
+    fuzz test); a user's model must not take parley down with it."""
     if not hasattr(os, "fork"):
         return None
     pid = os.fork()
@@ -107,9 +108,10 @@ def build_crashes(program: PrismProgram, values: Mapping[str, int]) -> int | Non
         faulthandler.disable()  # a crash here is the expected answer, not worth a dump
         code = 0
         try:
+            program = make()
             program.substitute_constants()
             stormpy.build_model(define_constants(program, values))
-        except BaseException:  # errors are reported by the parent's own build
+        except BaseException:
             code = 1
         os._exit(code)
     _, status = os.waitpid(pid, 0)
