@@ -166,6 +166,9 @@ CASE_STUDY = CaseStudy(
     # 160 of the 196 (xhat, yhat, directionhat) valuations are never consulted: after a move,
     # directionhat is always the heading of that move
     prune=True,
+    # campaign reports: no requirement, a cheap one, a demanding one (success >=, energy <=);
+    # they suit both the paper's motions (success up to 0.25) and the simulated ones (0.63)
+    requirement_settings=[(0.0, 50.0), (0.1, 20.0), (0.2, 30.0)],
 )
 
 
