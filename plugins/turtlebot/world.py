@@ -55,10 +55,6 @@ class World:
     plan: Mapping[Cell, str] = field(repr=False)
     source: str = "generated"
 
-    def free(self, cell: Cell) -> bool:
-        x, y = cell
-        return 0 <= x < self.size and 0 <= y < self.size and cell not in self.obstacles
-
 
 def shortest_moves(size: int, obstacles: frozenset[Cell], target: Cell) -> dict[Cell, str]:
     """The movement controller: for every free cell that can reach ``target``, the first move of a
