@@ -1,15 +1,21 @@
 """Parley: synthesis of uncertainty reduction controllers with formal guarantees.
 
-Plugins import what they need from here: ``hookimpl`` to mark their hook functions, the
-value objects of :mod:`parley_core.model`, :class:`CaseStudy`, the PRISM writer and the
-error types.
+The public API. Plugins import what they need from here: ``hookimpl`` to mark their hook
+functions, :class:`CaseStudy`, the value objects of :mod:`parley_core.model`, the plugin
+kit (:func:`option`, :func:`positive`, :data:`probability`, :meth:`Baseline.sweep`,
+:meth:`PolicyTable.values_of`, :func:`read_text`) and the error types. PRISM text is
+written with :mod:`parley_core.prism.writer`, policy plots with :mod:`parley_core.plotting`,
+and plugin tests use :mod:`parley_core.testing`. Importing this package imports neither
+stormpy nor matplotlib.
 """
 
 from parley_core.casestudy import CaseStudy, PolicyTable
-from parley_core.errors import ModelError, OptionError, ParleyError, PolicyError
+from parley_core.errors import ModelError, ObservationError, OptionError, ParleyError, PolicyError
+from parley_core.files import read_text
 from parley_core.hookspecs import hookimpl
 from parley_core.model import (
     Baseline,
+    Constraint,
     Decision,
     DecisionKind,
     Direction,
@@ -19,19 +25,25 @@ from parley_core.model import (
     Policy,
     Service,
     SystemModel,
+    Valued,
 )
+from parley_core.options import option, positive, probability
+from parley_core.urc import URC
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "URC",
     "Baseline",
     "CaseStudy",
+    "Constraint",
     "Decision",
     "DecisionKind",
     "Direction",
     "Family",
     "Front",
     "ModelError",
+    "ObservationError",
     "Objective",
     "OptionError",
     "ParleyError",
@@ -40,5 +52,10 @@ __all__ = [
     "PolicyTable",
     "Service",
     "SystemModel",
+    "Valued",
     "hookimpl",
+    "option",
+    "positive",
+    "probability",
+    "read_text",
 ]

@@ -36,11 +36,9 @@ class OutputError(ParleyError):
     """An output location cannot be used."""
 
 
-def read_text(path, what: str, hint: str, error: type[ParleyError] = ParleyError) -> str:
-    """The text of a user's file, or ``error`` saying that ``what`` (e.g. "map file") is missing or unreadable."""
-    if not path.is_file():
-        raise error(f"{what} {path} does not exist; {hint}")
-    try:
-        return path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise error(f"{what} {path} cannot be read ({exc}); {hint}") from None
+class SearchError(ParleyError):
+    """A search found nothing to report (no evaluated policy meets the constraints)."""
+
+
+class ObservationError(ParleyError):
+    """An observation the controller was not synthesized for."""

@@ -7,13 +7,14 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import attrs
+import numpy as np
 from attrs import field, frozen, validators
 
-from parley_core.errors import ModelError, PolicyError
+from parley_core.errors import ModelError, OptionError, PolicyError
 
 _IDENTIFIER = validators.matches_re(r"[A-Za-z_][A-Za-z0-9_]*")
 
@@ -68,8 +69,16 @@ class Objective:
     description: str = ""
     reference: float | None = None
 
-    def to_minimise(self, value: float) -> float:
+    def to_minimize(self, value: float) -> float:
         return self.direction.sign * value
+
+    def to_json(self) -> dict[str, Any]:
+        """The objective as run files and stores record it."""
+        return {"name": self.name, "direction": self.direction.value, "formula": self.formula}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Objective:
+        return cls(name=data["name"], formula=data["formula"], direction=Direction(data["direction"]))
 
 
 @frozen(kw_only=True)
@@ -99,6 +108,15 @@ class Service:
     def values(self) -> range:
         return range(self.low, self.high + 1)
 
+    def to_json(self) -> dict[str, Any]:
+        """The service as run files and controller files record it."""
+        return {"name": self.name, "constant": self.constant, "kind": self.kind.value, "range": [self.low, self.high]}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Service:
+        low, high = data["range"]
+        return cls(name=data["name"], constant=data["constant"], kind=DecisionKind(data["kind"]), low=int(low), high=int(high))
+
 
 @frozen(kw_only=True)
 class Baseline:
@@ -106,6 +124,12 @@ class Baseline:
 
     name: str = field(validator=validators.min_len(1))
     values: Mapping[str, int] = field(converter=lambda m: dict(m))
+
+    @classmethod
+    def sweep(cls, constant: str, values: Iterable[int], name: str = "every-{}") -> tuple[Baseline, ...]:
+        """One baseline per value of a service constant, named by ``name.format(value)``
+        (``Baseline.sweep("c", range(1, 11), "interval-{}")``)."""
+        return tuple(cls(name=name.format(v), values={constant: v}) for v in values)
 
 
 @frozen(kw_only=True)
@@ -172,18 +196,43 @@ class Family:
 
     ``prism`` is plain PRISM with each decision declared as an undefined ``const int``;
     ``decisions`` is their order in every policy vector. ``valuations`` are the observation
-    valuations kept (those in the variables' ranges, minus any reported as unreachable).
+    valuations kept (those in the variables' ranges, minus ``left_out``: those at which no
+    service is ever consulted, when pruned). ``system`` is the model it was augmented from
+    (the quotient is built from it); a family read back from a run directory has none.
     """
 
-    system: SystemModel
+    name: str = field(validator=_IDENTIFIER)
     prism: str
-    decisions: tuple[Decision, ...]
-    valuations: tuple[tuple[int, ...], ...]
-    left_out: tuple[tuple[int, ...], ...] = ()
+    services: tuple[Service, ...] = field(converter=_tuple_of(Service))
+    observation: tuple[str, ...] = field(converter=tuple)
+    objectives: tuple[Objective, ...] = field(converter=_tuple_of(Objective))
+    baselines: tuple[Baseline, ...] = field(converter=_tuple_of(Baseline), factory=tuple)
+    decisions: tuple[Decision, ...] = field(converter=tuple)
+    valuations: tuple[tuple[int, ...], ...] = field(converter=tuple)
+    left_out: tuple[tuple[int, ...], ...] = field(converter=tuple, factory=tuple)
+    system: SystemModel | None = field(default=None, eq=False, repr=False)
 
-    @property
-    def objectives(self) -> tuple[Objective, ...]:
-        return self.system.objectives
+    @classmethod
+    def of(cls, system: SystemModel, **fields: Any) -> Family:
+        """A family augmented from ``system`` (its services, observation, objectives and baselines)."""
+        return cls(
+            name=system.name,
+            services=system.services,
+            observation=system.observation,
+            objectives=system.objectives,
+            baselines=system.baselines,
+            system=system,
+            **fields,
+        )
+
+    def origin(self) -> SystemModel:
+        """The system model the family was augmented from; an error for a family read back from files."""
+        if self.system is None:
+            raise ModelError(
+                f"the {self.name} family was read back from files and has no original model; "
+                "rebuild it from the case study or the model file"
+            )
+        return self.system
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -210,7 +259,7 @@ class Family:
         return Policy(name=name, values=tuple(values[d.service.constant] for d in self.decisions))
 
     def baseline_policies(self) -> tuple[Policy, ...]:
-        return tuple(self.uniform(b.name, b.values) for b in self.system.baselines)
+        return tuple(self.uniform(b.name, b.values) for b in self.baselines)
 
     def check(self, policy: Policy) -> None:
         """Raise PolicyError unless the policy assigns every decision a value in its range."""
@@ -235,8 +284,9 @@ class Policy:
 
 
 @frozen(kw_only=True)
-class Front:
-    """Policies with their objective values (in the objectives' own units and directions)."""
+class Valued:
+    """Policies with their objective values (in the objectives' own units and directions):
+    any evaluated set, such as the baselines or the policies of a file."""
 
     objectives: tuple[Objective, ...] = field(converter=tuple)
     policies: tuple[Policy, ...] = field(converter=tuple)
@@ -257,3 +307,53 @@ class Front:
             {"policy": p.name, **{o.name: v for o, v in zip(self.objectives, row)}}
             for p, row in zip(self.policies, self.values)
         ]
+
+
+@frozen(kw_only=True)
+class Front(Valued):
+    """A Pareto front: policies whose values no other policy of the front dominates (the
+    pipeline builds it from the non-dominated Storm-checked policies, in lexicographic
+    order of their values)."""
+
+
+@frozen(kw_only=True)
+class Constraint:
+    """A requirement on one objective: ``success>=0.8``, ``cost<=60``."""
+
+    objective: str
+    operator: str = field(validator=validators.in_((">=", "<=")))
+    bound: float
+
+    @classmethod
+    def parse(cls, text: str) -> Constraint:
+        for operator in (">=", "<="):
+            name, sep, bound = text.partition(operator)
+            if sep:
+                try:
+                    return cls(objective=name.strip(), operator=operator, bound=float(bound))
+                except ValueError:
+                    break
+        raise OptionError(
+            f"malformed constraint {text!r}; write OBJECTIVE>=BOUND or OBJECTIVE<=BOUND, e.g. success>=0.8"
+        )
+
+    def column(self, names: Sequence[str]) -> int:
+        """The position of the constrained objective among ``names``; an unknown one is an error."""
+        if self.objective not in names:
+            raise OptionError(f"constraint {self}: no objective {self.objective!r}; objectives: {', '.join(names)}")
+        return list(names).index(self.objective)
+
+    def violation(self, values: np.ndarray) -> np.ndarray:
+        """How far values are from meeting the constraint (<= 0: met), as pymoo wants it."""
+        return self.bound - values if self.operator == ">=" else values - self.bound
+
+    def __str__(self) -> str:
+        return f"{self.objective}{self.operator}{self.bound:g}"
+
+
+def meets(values: np.ndarray, names: Sequence[str], constraints: Sequence[Constraint]) -> np.ndarray:
+    """Which rows of ``values`` (one column per objective in ``names``) meet every constraint."""
+    ok = np.ones(len(values), dtype=bool)
+    for constraint in constraints:
+        ok &= constraint.violation(values[:, constraint.column(names)]) <= 0
+    return ok

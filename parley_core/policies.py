@@ -24,8 +24,10 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from parley_core.casestudy import PolicyTable
-from parley_core.errors import PolicyError, read_text
+from parley_core.errors import PolicyError
+from parley_core.files import read_text
 from parley_core.model import Family, Policy
+from parley_core.urc import URC
 
 
 def read_policies(path: Path, family: Family) -> list[Policy]:
@@ -38,8 +40,8 @@ def read_policies(path: Path, family: Family) -> list[Policy]:
     body = rows[1:]
     if not header or header[0] != "policy":
         raise PolicyError(f"policies file {path}: the first column must be 'policy', found {header[0] if header else 'nothing'!r}")
-    observation = list(family.system.observation)
-    constants = [s.constant for s in family.system.services]
+    observation = list(family.observation)
+    constants = [s.constant for s in family.services]
     if header[1:] == observation + constants:
         policies = _read_long(path, body, family)
     elif set(header[1:]) == set(family.names) and len(header) == len(family.names) + 1:
@@ -65,8 +67,8 @@ def _integer(path: Path, line: int, column: str, text: str) -> int:
 
 
 def _read_long(path: Path, body: list[list[str]], family: Family) -> list[Policy]:
-    observation = family.system.observation
-    services = family.system.services
+    observation = family.observation
+    services = family.services
     width = 1 + len(observation) + len(services)
     tables: dict[str, dict[tuple[int, ...], list[int]]] = {}
     for line, row in enumerate(body, start=2):
@@ -137,8 +139,8 @@ def long_csv(family: Family, policies: Iterable[Policy]) -> str:
     """Policies as long-form CSV: ``policy``, the observation variables, one column per service."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    constants = [s.constant for s in family.system.services]
-    writer.writerow(["policy", *family.system.observation, *constants])
+    constants = [s.constant for s in family.services]
+    writer.writerow(["policy", *family.observation, *constants])
     for policy in policies:
         for valuation, values in table(family, policy).items():
             writer.writerow([policy.name, *valuation, *(values[c] for c in constants)])
@@ -150,4 +152,33 @@ def table(family: Family, policy: Policy) -> PolicyTable:
     result: dict[tuple[int, ...], dict[str, int]] = {}
     for decision, value in zip(family.decisions, policy.values):
         result.setdefault(decision.valuation, {})[decision.service.constant] = value
-    return result
+    return PolicyTable(result)
+
+
+def policy_from_file(path: Path, family: Family) -> Policy:
+    """The one policy of a controller file (``parley select``) or of a policies file holding one."""
+    if path.suffix == ".json":
+        urc = URC.load(path)
+        if tuple(urc.observation) != tuple(family.observation):
+            raise PolicyError(
+                f"controller {path} reads {', '.join(urc.observation)}, the model {', '.join(family.observation)}"
+            )
+        values = [urc.decide(d.valuation)[d.service.constant] for d in family.decisions]
+        return Policy(name=urc.policy or path.stem, values=values)
+    policies = read_policies(path, family)
+    if len(policies) != 1:
+        raise PolicyError(
+            f"policies file {path} holds {len(policies)} policies; give a file with one (or a controller file)"
+        )
+    return policies[0]
+
+
+def policies_or_constant(family: Family, path: Path | None, constant: int | None) -> list[Policy]:
+    """The policies of ``path``, or the one policy that uses ``constant`` everywhere (exactly one must be given)."""
+    if (path is None) == (constant is None):
+        raise PolicyError("give exactly one of --policies FILE and --constant K")
+    if path is not None:
+        return read_policies(path, family)
+    policy = family.uniform(f"constant-{constant}", {s.constant: constant for s in family.services})
+    family.check(policy)
+    return [policy]

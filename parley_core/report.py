@@ -18,17 +18,15 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from parley_core import policies as policy_files  # noqa: E402
-from parley_core.casestudy import options_as_dict  # noqa: E402
-from parley_core.errors import OutputError  # noqa: E402
-from parley_core.model import Front  # noqa: E402
-from parley_core.pipeline import RunResult  # noqa: E402
+from parley_core import metrics
+from parley_core import policies as policy_files
+from parley_core.errors import OutputError
+from parley_core.model import Direction, Valued
+from parley_core.options import options_as_dict
+from parley_core.pipeline import RunResult
+from parley_core.plotting import figure, save
 
 
 def check_output(out: Path, force: bool) -> None:
@@ -39,7 +37,7 @@ def check_output(out: Path, force: bool) -> None:
         raise OutputError(f"output directory {out} exists and is not empty; choose another --out or add --force")
 
 
-def front_csv(front: Front, extra: dict[str, list[Any]] | None = None) -> str:
+def front_csv(front: Valued, extra: dict[str, list[Any]] | None = None) -> str:
     """``policy``, then any ``extra`` columns, then one column per objective (full precision)."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
@@ -54,7 +52,7 @@ def decisions_csv(family) -> str:
     """Each decision constant of model.prism with its service constant and observation valuation."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(["decision", "constant", *family.system.observation])
+    writer.writerow(["decision", "constant", *family.observation])
     for decision in family.decisions:
         writer.writerow([decision.name, decision.service.constant, *decision.valuation])
     return out.getvalue()
@@ -70,11 +68,26 @@ def versions() -> dict[str, str]:
     return result
 
 
+def hypervolume(result: RunResult, valued: Valued) -> float:
+    """The hypervolume of a set of the run, against the run's reference point."""
+    directions = [o.direction for o in result.family.objectives]
+    return metrics.hypervolume(np.array(valued.values), directions, result.reference)
+
+
+def spread(result: RunResult, valued: Valued) -> float | None:
+    """Deb's spread of the set's non-dominated points (None unless two objectives)."""
+    directions = [o.direction for o in result.family.objectives]
+    if len(directions) != 2:
+        return None
+    values = np.array(valued.values)
+    return metrics.spread(values[metrics.nondominated(values, directions)], directions)
+
+
 def summary(result: RunResult) -> dict[str, Any]:
     family = result.family
     search = result.search
-    hv_front = result.hypervolume(result.front)
-    hv_base = result.hypervolume(result.baseline)
+    hv_front = hypervolume(result, result.front)
+    hv_base = hypervolume(result, result.baseline)
     timings = {k: round(v, 4) for k, v in result.timings.items()}
     return {
         "case_study": result.prepared.case.name,
@@ -87,34 +100,32 @@ def summary(result: RunResult) -> dict[str, Any]:
             "generations": result.settings.generations,
             "generations_done": search.generations,
             "evaluations": search.evaluations,
+            "max_evaluations": result.settings.max_evaluations,
+            "time_limit_seconds": result.settings.time_limit,
+            "stopped_by": search.stopped_by.value,
             "interrupted": search.interrupted,
         },
-        "evaluator": result.evaluator,
+        "evaluator": result.evaluator.value,
         "evaluator_details": result.evaluator_info,
         "storm_solver": "native, sound value iteration, relative precision 1e-12",
         "workers": result.workers,
         "model": {
-            "observation": list(family.system.observation),
-            "services": [
-                {"name": s.name, "constant": s.constant, "kind": s.kind.value, "range": [s.low, s.high]}
-                for s in family.system.services
-            ],
+            "observation": list(family.observation),
+            "services": [s.to_json() for s in family.services],
             "decisions": len(family.decisions),
             "valuations": len(family.valuations),
             "valuations_left_out": len(family.left_out),
             "left_out": [list(v) for v in family.left_out],
         },
-        "objectives": [
-            {"name": o.name, "direction": o.direction.value, "formula": o.formula} for o in family.objectives
-        ],
+        "objectives": [o.to_json() for o in family.objectives],
         "constraints": [str(c) for c in result.settings.constraints],
-        "front": {"size": len(result.front), "hypervolume": hv_front, "spread": result.spread(result.front)},
-        "baseline": {"size": len(result.baseline), "hypervolume": hv_base, "spread": result.spread(result.baseline)},
+        "front": {"size": len(result.front), "hypervolume": hv_front, "spread": spread(result, result.front)},
+        "baseline": {"size": len(result.baseline), "hypervolume": hv_base, "spread": spread(result, result.baseline)},
         "hypervolume_reference": list(result.reference),
         "hypervolume_gain": hv_front - hv_base,
         "hypervolume_gain_percent": (100.0 * (hv_front - hv_base) / hv_base) if hv_base > 0 else None,
         "verification": {
-            "by": result.verification.by,
+            "by": result.verification.by.value,
             "policies": result.verification.policies,
             "max_difference": result.verification.max_difference,
         },
@@ -126,9 +137,9 @@ def summary(result: RunResult) -> dict[str, Any]:
 
 def plot_front(result: RunResult, path: Path) -> None:
     objectives = result.family.objectives
-    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    fig, ax = figure(6.4, 4.6)
     if len(objectives) >= 2:
-        i, j = (1, 0) if objectives[0].direction.value == "max" else (0, 1)
+        i, j = (1, 0) if objectives[0].direction is Direction.MAX else (0, 1)
         front = np.array(result.front.values)
         base = np.array(result.baseline.values)
         ax.scatter(front[:, i], front[:, j], s=22, facecolors="none", edgecolors="tab:blue", label=f"parley front ({len(front)})")
@@ -142,9 +153,7 @@ def plot_front(result: RunResult, path: Path) -> None:
     ax.set_title(f"{result.prepared.case.name}: front vs baseline", fontsize=11)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    save(fig, path, dpi=130)
 
 
 PLOT_ERROR = "policy-plot-error.txt"
@@ -164,8 +173,8 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path
         (staging / "front.csv").write_text(front_csv(result.front))
         (staging / "policies.csv").write_text(policy_files.wide_csv(family, result.front.policies))
         (staging / "decisions.csv").write_text(decisions_csv(family))
-        constants = [s.constant for s in family.system.services]
-        baseline_columns = {c: [b.values[c] for b in family.system.baselines] for c in constants}
+        constants = [s.constant for s in family.services]
+        baseline_columns = {c: [b.values[c] for b in family.baselines] for c in constants}
         (staging / "baseline.csv").write_text(front_csv(result.baseline, baseline_columns))
         (staging / "summary.json").write_text(json.dumps(summary(result), indent=2) + "\n")
         plot_front(result, staging / "front.png")

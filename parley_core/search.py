@@ -1,127 +1,94 @@
 """Pareto search: pymoo NSGA-II over the integer decisions of a family.
 
-The problem is vectorised (the evaluator sees a whole population at once) and memoised: an
-:class:`Archive` keeps every policy evaluated with its values, so no policy is evaluated
-twice and the final front is taken from everything seen, not only from the last population.
-The initial population holds the baseline policies, so the front can never be worse than the
-baseline. One seed fixes the run.
+The problem is vectorised (the evaluator sees a whole population at once) and memoised: a
+:class:`~parley_core.evaluate.cache.CachingEvaluator` keeps every policy evaluated with its
+values, so no policy is evaluated twice and the final front is taken from everything seen,
+not only from the last population. The initial population holds the baseline policies, so
+the front can never be worse than the baseline. One seed fixes the run.
+
+The search ends by pymoo :class:`~pymoo.core.termination.Termination` objects, whichever
+comes first: a number of generations, of evaluated policies (exactly: the generation that
+reaches the budget evaluates only what is left of it), or of seconds.
 """
 
 from __future__ import annotations
 
+import enum
 import time
-from collections.abc import Callable, Sequence
 
+import attrs
 import numpy as np
 from attrs import field, frozen, validators
 from pymoo.algorithms.moo.nsga2 import NSGA2
 from pymoo.core.problem import Problem
+from pymoo.core.termination import Termination, TerminateIfAny
 from pymoo.operators.crossover.sbx import SBX
 from pymoo.operators.mutation.pm import PM
 from pymoo.operators.repair.rounding import RoundingRepair
+from pymoo.termination.max_gen import MaximumGenerationTermination
+from pymoo.termination.max_time import TimeBasedTermination
 
-from parley_core.errors import OptionError
 from parley_core.evaluate import Evaluator
-from parley_core.model import Family
+from parley_core.evaluate.cache import CachingEvaluator
+from parley_core.model import Constraint, Family
+from parley_core.progress import Progress
+
+UNEVALUATED = 1e300
+"""The objective value pymoo sees for offspring left unevaluated when the budget ran out
+(the search stops after that generation, and the front holds evaluated policies only)."""
 
 
-@frozen(kw_only=True)
-class Constraint:
-    """A requirement on one objective: ``success>=0.8``, ``cost<=60``."""
-
-    objective: str
-    operator: str = field(validator=validators.in_((">=", "<=")))
-    bound: float
-
-    @classmethod
-    def parse(cls, text: str) -> Constraint:
-        for operator in (">=", "<="):
-            name, sep, bound = text.partition(operator)
-            if sep:
-                try:
-                    return cls(objective=name.strip(), operator=operator, bound=float(bound))
-                except ValueError:
-                    break
-        raise OptionError(f"malformed constraint {text!r}; write OBJECTIVE>=BOUND or OBJECTIVE<=BOUND, e.g. success>=0.8")
-
-    def column(self, names: Sequence[str]) -> int:
-        """The position of the constrained objective among ``names``; an unknown one is an error."""
-        if self.objective not in names:
-            raise OptionError(f"constraint {self}: no objective {self.objective!r}; objectives: {', '.join(names)}")
-        return list(names).index(self.objective)
-
-    def violation(self, values: np.ndarray) -> np.ndarray:
-        """How far values are from meeting the constraint (<= 0: met), as pymoo wants it."""
-        return self.bound - values if self.operator == ">=" else values - self.bound
-
-    def __str__(self) -> str:
-        return f"{self.objective}{self.operator}{self.bound:g}"
-
-
-def meets(values: np.ndarray, names: Sequence[str], constraints: Sequence[Constraint]) -> np.ndarray:
-    """Which rows of ``values`` (one column per objective in ``names``) meet every constraint."""
-    ok = np.ones(len(values), dtype=bool)
-    for constraint in constraints:
-        ok &= constraint.violation(values[:, constraint.column(names)]) <= 0
-    return ok
+def _positive_or_none(_instance, attribute: attrs.Attribute, value) -> None:
+    if value is not None and value <= 0:
+        raise ValueError(f"{attribute.name} must be positive or None, got {value}")
 
 
 @frozen(kw_only=True)
 class SearchSettings:
-    """Budget and seed of a search. ``max_evaluations`` (new policies) stops it early if set;
-    ``constraints`` make NSGA-II prefer policies that meet them (pymoo's constraint handling)."""
+    """Budget and seed of a search; the defaults are the paper's budget (100 x 40).
+
+    The search stops at whichever limit comes first: ``generations`` (None: no limit),
+    ``max_evaluations`` (new policies, the baselines included) or ``time_limit`` (seconds of
+    search). ``constraints`` make NSGA-II prefer policies that meet them (pymoo's constraint
+    handling).
+    """
 
     population: int = field(default=100, validator=validators.ge(2))
-    generations: int = field(default=40, validator=validators.ge(1))
+    generations: int | None = field(default=40, validator=_positive_or_none)
+    max_evaluations: int | None = field(default=None, validator=_positive_or_none)
+    time_limit: float | None = field(default=None, validator=_positive_or_none)
     seed: int = 1
-    max_evaluations: int | None = None
     constraints: tuple[Constraint, ...] = field(default=(), converter=tuple)
 
-
-@frozen(kw_only=True)
-class SearchProgress:
-    generation: int
-    generations: int
-    evaluations: int
+    def __attrs_post_init__(self) -> None:
+        if self.generations is None and self.max_evaluations is None and self.time_limit is None:
+            raise ValueError("a search needs a limit: generations, max_evaluations or time_limit")
 
 
-class Archive:
-    """Every policy evaluated so far, in order, with its values; evaluates only what is new."""
+def default(name: str):
+    """The default of a :class:`SearchSettings` field (the CLI's defaults come from here)."""
+    return attrs.fields_dict(SearchSettings)[name].default
 
-    def __init__(self, evaluator: Evaluator, n_decisions: int, n_objectives: int) -> None:
-        self.evaluator = evaluator
-        self._index: dict[bytes, int] = {}
-        self._policies: list[np.ndarray] = []
-        self._values: list[np.ndarray] = []
-        self.n_decisions = n_decisions
-        self.n_objectives = n_objectives
 
-    def __len__(self) -> int:
-        return len(self._policies)
+class Stop(enum.Enum):
+    """Why a search ended."""
 
-    @property
-    def policies(self) -> np.ndarray:
-        return np.array(self._policies, dtype=np.int64).reshape(-1, self.n_decisions)
+    GENERATIONS = "generations"
+    EVALUATIONS = "evaluations"
+    TIME = "time"
+    INTERRUPTED = "interrupted"
 
-    @property
-    def values(self) -> np.ndarray:
-        return np.array(self._values, dtype=float).reshape(-1, self.n_objectives)
 
-    def evaluate(self, policies: np.ndarray, progress: Callable[[int], None] | None = None) -> np.ndarray:
-        policies = np.asarray(policies, dtype=np.int64).reshape(-1, self.n_decisions)
-        keys = [row.tobytes() for row in policies]
-        new: dict[bytes, np.ndarray] = {}
-        for key, row in zip(keys, policies):
-            if key not in self._index and key not in new:
-                new[key] = row
-        if new:
-            rows = np.array(list(new.values()))
-            values = self.evaluator.evaluate(rows, progress=progress)
-            for key, row, value in zip(new, rows, values):
-                self._index[key] = len(self._policies)
-                self._policies.append(row.copy())
-                self._values.append(np.asarray(value, dtype=float))
-        return np.array([self._values[self._index[k]] for k in keys])
+class EvaluationBudget(Termination):
+    """Terminates once the archive holds ``budget`` policies."""
+
+    def __init__(self, archive: CachingEvaluator, budget: int) -> None:
+        super().__init__()
+        self.archive = archive
+        self.budget = budget
+
+    def _update(self, algorithm) -> float:
+        return len(self.archive) / self.budget
 
 
 class PolicyProblem(Problem):
@@ -130,9 +97,9 @@ class PolicyProblem(Problem):
     def __init__(
         self,
         family: Family,
-        archive: Archive,
-        progress: Callable[[int], None] | None = None,
+        archive: CachingEvaluator,
         constraints: tuple[Constraint, ...] = (),
+        budget: int | None = None,
     ) -> None:
         super().__init__(
             n_var=len(family.decisions),
@@ -146,14 +113,17 @@ class PolicyProblem(Problem):
         self.constraints = [(c.column(names), c) for c in constraints]
         self.archive = archive
         self.signs = np.array([o.direction.sign for o in family.objectives])
-        self.progress = progress
+        self.budget = budget
 
     def _evaluate(self, x, out, *args, **kwargs) -> None:
         policies = np.rint(np.asarray(x, dtype=float)).astype(np.int64)
-        values = self.archive.evaluate(policies, progress=self.progress)
-        out["F"] = values * self.signs
+        left = None if self.budget is None else max(0, self.budget - len(self.archive))
+        values = self.archive.evaluate(policies, budget=left)
+        unevaluated = np.isnan(values).all(axis=1) if left is not None else np.zeros(len(values), dtype=bool)
+        out["F"] = np.where(unevaluated[:, None], UNEVALUATED, values * self.signs)
         if self.constraints:
-            out["G"] = np.column_stack([c.violation(values[:, i]) for i, c in self.constraints])
+            violations = np.column_stack([c.violation(values[:, i]) for i, c in self.constraints])
+            out["G"] = np.where(unevaluated[:, None], UNEVALUATED, violations)
 
 
 @frozen(kw_only=True)
@@ -163,7 +133,11 @@ class SearchResult:
     evaluations: int
     generations: int
     seconds: float
-    interrupted: bool
+    stopped_by: Stop
+
+    @property
+    def interrupted(self) -> bool:
+        return self.stopped_by is Stop.INTERRUPTED
 
 
 def initial_population(family: Family, settings: SearchSettings) -> np.ndarray:
@@ -177,22 +151,34 @@ def initial_population(family: Family, settings: SearchSettings) -> np.ndarray:
     return rows.astype(float)
 
 
+def termination(settings: SearchSettings, archive: CachingEvaluator) -> dict[Stop, Termination]:
+    """The pymoo terminations of the settings' limits, by what they stop for."""
+    criteria: dict[Stop, Termination] = {}
+    if settings.generations is not None:
+        criteria[Stop.GENERATIONS] = MaximumGenerationTermination(settings.generations)
+    if settings.max_evaluations is not None:
+        criteria[Stop.EVALUATIONS] = EvaluationBudget(archive, settings.max_evaluations)
+    if settings.time_limit is not None:
+        criteria[Stop.TIME] = TimeBasedTermination(settings.time_limit)
+    return criteria
+
+
 def search(
     family: Family,
     evaluator: Evaluator,
     settings: SearchSettings,
     *,
-    archive: Archive | None = None,
-    on_generation: Callable[[SearchProgress], None] | None = None,
-    on_evaluation: Callable[[int], None] | None = None,
+    archive: CachingEvaluator | None = None,
+    progress: Progress | None = None,
 ) -> SearchResult:
     """Run NSGA-II; Ctrl-C stops it and returns what was evaluated so far (``interrupted``).
 
     ``archive`` may hold policies evaluated before (by the same evaluator); they are not
-    evaluated again and belong to the result.
+    evaluated again, count towards ``max_evaluations`` and belong to the result.
+    ``progress`` is called once per generation.
     """
-    archive = archive if archive is not None else Archive(evaluator, len(family.decisions), len(family.objectives))
-    problem = PolicyProblem(family, archive, progress=on_evaluation, constraints=settings.constraints)
+    archive = archive if archive is not None else CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
+    problem = PolicyProblem(family, archive, constraints=settings.constraints, budget=settings.max_evaluations)
     algorithm = NSGA2(
         pop_size=settings.population,
         sampling=initial_population(family, settings),
@@ -200,25 +186,26 @@ def search(
         mutation=PM(prob=1.0, eta=3.0, vtype=float, repair=RoundingRepair()),
         eliminate_duplicates=True,
     )
-    algorithm.setup(problem, termination=("n_gen", settings.generations), seed=settings.seed, verbose=False)
+    criteria = termination(settings, archive)
+    algorithm.setup(problem, termination=TerminateIfAny(*criteria.values()), seed=settings.seed, verbose=False)
     start = time.perf_counter()
     generation = 0
-    interrupted = False
+    stopped_by = None
     try:
         while algorithm.has_next():
             algorithm.next()
             generation += 1
-            if on_generation:
-                on_generation(SearchProgress(generation=generation, generations=settings.generations, evaluations=len(archive)))
-            if settings.max_evaluations is not None and len(archive) >= settings.max_evaluations:
-                break
+            if progress:
+                progress(1)
     except KeyboardInterrupt:
-        interrupted = True
+        stopped_by = Stop.INTERRUPTED
+    if stopped_by is None:
+        stopped_by = next((stop for stop, c in criteria.items() if c.has_terminated()), Stop.GENERATIONS)
     return SearchResult(
         policies=archive.policies,
         values=archive.values,
         evaluations=len(archive),
         generations=generation,
         seconds=time.perf_counter() - start,
-        interrupted=interrupted,
+        stopped_by=stopped_by,
     )

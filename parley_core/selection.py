@@ -8,21 +8,19 @@ import numpy as np
 
 from parley_core import metrics
 from parley_core.errors import OptionError
+from parley_core.model import Constraint, meets
 from parley_core.rundir import RunDirectory
-from parley_core.runtime import URC
-from parley_core.search import Constraint, meets
+from parley_core.urc import URC
 
 
 def select(run: RunDirectory, constraints: Sequence[Constraint] = (), prefer: str | None = None) -> str:
     """The name of the chosen front policy: among those meeting the constraints, the best
     on ``prefer`` (ties: the knee of those), or else the knee point."""
-    names = [o["name"] for o in run.objectives]
-    values = np.array([v for _, v in run.front], dtype=float).reshape(-1, len(names))
+    names = [o.name for o in run.objectives]
+    values = np.array(run.front.values, dtype=float).reshape(-1, len(names))
     feasible = meets(values, names, constraints)
     if not feasible.any():
-        raise OptionError(
-            f"no policy of the front meets {' and '.join(map(str, constraints))}; relax the constraints"
-        )
+        raise OptionError(f"no policy of the front meets {' and '.join(map(str, constraints))}; relax the constraints")
     candidates = np.flatnonzero(feasible)
     if prefer is not None:
         if prefer not in names:
@@ -30,24 +28,21 @@ def select(run: RunDirectory, constraints: Sequence[Constraint] = (), prefer: st
         column = values[candidates, names.index(prefer)] * run.directions[names.index(prefer)].sign
         candidates = candidates[column == column.min()]
     chosen = candidates[metrics.knee(values[candidates], run.directions)] if len(candidates) > 1 else candidates[0]
-    return run.front[int(chosen)][0]
+    return run.front.policies[int(chosen)].name
 
 
 def controller(run: RunDirectory, policy: str) -> URC:
     """The URC of one front policy of a run directory."""
-    if policy not in run.policies:
-        raise OptionError(f"policy {policy!r} is not in {run.path}/policies.csv")
+    chosen = run.policy(policy)
     table: dict[tuple[int, ...], dict[str, int]] = {}
-    for (_name, constant, valuation), value in zip(run.decisions, run.policies[policy]):
+    for (_name, constant, valuation), value in zip(run.decisions, chosen.values):
         table.setdefault(valuation, {})[constant] = value
-    values = dict(run.front)[policy]
-    model = run.summary["model"]
     return URC(
-        observation=model["observation"],
-        services=model["services"],
+        observation=run.observation,
+        services=run.services,
         table=table,
-        left_out=[tuple(v) for v in model.get("left_out", [])],
+        left_out=run.left_out,
         policy=policy,
-        values={o["name"]: v for o, v in zip(run.objectives, values)},
+        values={o.name: v for o, v in zip(run.objectives, run.values_of(policy))},
         source=str(run.path),
     )

@@ -24,9 +24,10 @@ import stormpy.simulator as storm_simulator
 from attrs import frozen
 
 from parley_core.errors import ModelError
-from parley_core.evaluate.storm import StormTask, StormChecker
+from parley_core.evaluate.storm import StormChecker, StormTask
 from parley_core.model import Family
 from parley_core.prism import program as prism
+from parley_core.prism.properties import Shape, shape
 
 Z99 = 2.5758293035489004
 
@@ -69,24 +70,18 @@ def simulate(family: Family, values: Sequence[int], episodes: int, seed: int, ma
 
     plans = []
     for objective, prop, value in zip(family.objectives, properties, checked):
-        formula = prop.get_raw_formula()
-        sub = formula.subformula
-        kind = type(sub).__name__
-        if formula.is_probability_operator_formula and kind in ("EventuallyFormula", "BoundedUntilFormula"):
-            target = sub.subformula if kind == "EventuallyFormula" else sub.right_subformula
-            if kind == "BoundedUntilFormula" and (sub.has_lower_bound or type(sub.left_subformula).__name__ != "BooleanLiteralFormula"):
+        found = shape(prop, instance)
+        if found.kind in (Shape.UNTIL, Shape.BOUNDED_UNTIL):
+            if found.left is not None:
                 plans.append(f"{objective.name}: only F and F<=k probabilities can be simulated")
                 continue
-            steps = prism.fixed_int(sub.upper_bound_expression) if kind == "BoundedUntilFormula" else None
-            if kind == "BoundedUntilFormula" and steps is None:
-                plans.append(f"{objective.name}: the step bound is not a fixed integer")
-                continue
             mask = np.zeros(model.nr_states, dtype=bool)
-            mask[np.asarray(stormpy.model_checking(model, target).get_truth_values_vector(), dtype=np.int64)] = True
-            plans.append(("reach", objective.name, mask, steps, value))
-        elif formula.is_reward_operator_formula and kind == "CumulativeRewardFormula" and str(sub).startswith("C<=") and str(sub)[3:].isdigit():
-            name = formula.reward_name if formula.has_reward_model_name() else list(model.reward_models)[0]
-            plans.append(("reward", objective.name, list(model.reward_models).index(name), int(str(sub)[3:]), value))
+            mask[np.asarray(stormpy.model_checking(model, found.right).get_truth_values_vector(), dtype=np.int64)] = True
+            plans.append(("reach", objective.name, mask, found.steps, value))
+        elif found.kind is Shape.CUMULATIVE:
+            rewards = list(model.reward_models)
+            name = found.reward if found.reward is not None else rewards[0]
+            plans.append(("reward", objective.name, rewards.index(name), found.steps, value))
         else:
             plans.append(f"{objective.name}: {objective.formula} cannot be simulated (F, F<=k and C<=k can)")
 

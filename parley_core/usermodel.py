@@ -21,9 +21,12 @@ from pathlib import Path
 from attrs import field, frozen
 
 from parley_core.casestudy import CaseStudy
-from parley_core.errors import ModelError, OptionError, read_text
+from parley_core.errors import ModelError, OptionError
+from parley_core.files import read_text
 from parley_core.model import Baseline, Decision, DecisionKind, Direction, Family, Objective, Service, SystemModel
 from parley_core.prism import program as prism
+from parley_core.prism import rewrite
+from parley_core.urc import URC
 
 
 def parse_decision(text: str) -> Service:
@@ -112,7 +115,7 @@ def read_objectives(path: Path, maximize: Sequence[str] = (), minimize: Sequence
 
 def system_from_file(
     path: Path,
-    decisions: Sequence[str],
+    decisions: Sequence[str | Service],
     observe: Sequence[str],
     properties: Path | None = None,
     maximize: Sequence[str] = (),
@@ -122,7 +125,7 @@ def system_from_file(
     text = read_text(path, "model file", "give the path of a PRISM model (.prism)", OptionError)
     if not decisions:
         raise OptionError("give at least one --decision NAME=LOW..HIGH (the constant that sets when a service runs)")
-    services = [parse_decision(d) for d in decisions]
+    services = [d if isinstance(d, Service) else parse_decision(d) for d in decisions]
     observation = parse_observation(observe)
     program = prism.parse_program(text, origin=f"model {path}")
     constants = {c.name: c for c in program.constants}
@@ -185,10 +188,7 @@ def system_from_file(
 
 
 def _quotient_program(system: SystemModel):
-    from parley_core.augment import augment
-    from parley_core.evaluate.quotient import quotient_program
-
-    return prism.parse_program(quotient_program(augment(system))[0])
+    return prism.parse_program(rewrite.quotient_program(system)[0])
 
 
 def _check_storm_survives(path: Path, make, values) -> None:
@@ -225,24 +225,29 @@ def case_study_for(system: SystemModel, path: Path) -> CaseStudy:
 
 
 def family_of_run(run) -> Family:
-    """The family of a run directory, rebuilt from its model.prism and decisions.csv (no plugin needed)."""
-    model = run.summary["model"]
-    services = {
-        s["constant"]: Service(name=s["name"], constant=s["constant"], kind=DecisionKind(s["kind"]), low=s["range"][0], high=s["range"][1])
-        for s in model["services"]
-    }
-    decisions = tuple(Decision(name=name, service=services[constant], valuation=valuation) for name, constant, valuation in run.decisions)
-    objectives = [Objective(name=o["name"], formula=o["formula"], direction=Direction(o["direction"])) for o in run.objectives]
-    system = SystemModel(
-        name=_identifier(run.summary.get("case_study", "run")),
-        prism=run.model,  # the augmented model stands in for the original; only decisions are read from it
-        services=list(services.values()),
-        observation=model["observation"],
-        objectives=objectives,
-        description=f"run {run.path}",
+    """The family of a run directory, rebuilt from its model.prism and decisions.csv (no
+    plugin needed). It has no original model: Storm can check and simulate its policies,
+    the quotient cannot be built from it."""
+    services = {s.constant: s for s in run.services}
+    decisions = tuple(
+        Decision(name=name, service=services[constant], valuation=valuation) for name, constant, valuation in run.decisions
     )
-    valuations = tuple(dict.fromkeys(d.valuation for d in decisions))
     return Family(
-        system=system, prism=run.model, decisions=decisions, valuations=valuations,
-        left_out=tuple(tuple(v) for v in model.get("left_out", [])),
+        name=_identifier(run.summary.get("case_study", "run")),
+        prism=run.model,
+        services=run.services,
+        observation=run.observation,
+        objectives=run.objectives,
+        decisions=decisions,
+        valuations=tuple(dict.fromkeys(d.valuation for d in decisions)),
+        left_out=run.left_out,
     )
+
+
+def family_for_simulation(target: Path, controller: URC, props: Path) -> Family:
+    """A user's model augmented with a controller's services and observation (as `parley
+    synthesize` augmented it), for simulating the controller on it."""
+    from parley_core.pipeline import make_family
+
+    system = system_from_file(target, controller.services, [",".join(controller.observation)], props)
+    return make_family(system, prune=True)

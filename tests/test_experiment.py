@@ -16,19 +16,22 @@ from parley_core.errors import OptionError, OutputError
 from parley_core.experiment import report
 from parley_core.experiment.campaign import Budget, execute, instance_label, instances_from, plan
 from parley_core.experiment.stats import a12, compare
-from parley_core.experiment.store import RunRecord, Store
-from parley_core.plugins import load_registry
+from parley_core.experiment.store import RunRecord, Store, baseline_from_json, front_from_json
+from parley_core.model import Direction, Objective
+from parley_plugins.robot_grid import CASE_STUDY as ROBOT
 
-ROBOT = load_registry().get("robot_grid")
 TINY = Budget(population=6, generations=2)
-OBJECTIVES = [{"name": "success", "direction": "max", "formula": "P=? [F \"goal\"]"}, {"name": "cost", "direction": "min", "formula": "R=? [C<=9]"}]
+OBJECTIVES = (
+    Objective(name="success", direction=Direction.MAX, formula='P=? [F "goal"]'),
+    Objective(name="cost", direction=Direction.MIN, formula="R=? [C<=9]"),
+)
 
 
 def record(instance: str, repetition: int, front, baseline, campaign: str = "c") -> RunRecord:
     return RunRecord(
         campaign=campaign, instance=instance, repetition=repetition, seed=repetition + 1, options={},
-        objectives=OBJECTIVES, front={"policies": [[1]] * len(front), "values": front},
-        baseline={"names": ["b"] * len(baseline), "values": baseline}, summary={},
+        objectives=OBJECTIVES, front=front_from_json(OBJECTIVES, {"policies": [[1]] * len(front), "values": front}),
+        baseline=baseline_from_json(OBJECTIVES, {"names": ["b"] * len(baseline), "values": baseline}), summary={},
     )
 
 
@@ -38,7 +41,7 @@ def test_store_keeps_each_run_once_and_checks_campaign_settings(tmp_path):
         assert store.add(record("map_1", 0, [[0.9, 10.0]], [[0.8, 12.0]]))
         assert not store.add(record("map_1", 0, [[0.1, 1.0]], [[0.8, 12.0]]))
         assert store.done("c") == {("map_1", 0)}
-        assert [r.front["values"] for r in store.runs("c")] == [[[0.9, 10.0]]]
+        assert [[list(v) for v in r.front.values] for r in store.runs("c")] == [[[0.9, 10.0]]]
         store.begin_campaign("c", "robot_grid", {"population": 6})
         with pytest.raises(OutputError, match="already holds campaign 'c' with other settings"):
             store.begin_campaign("c", "robot_grid", {"population": 7})
@@ -154,12 +157,12 @@ def test_the_dask_path_on_a_local_cluster(tmp_path):
             assert (outcome.stored, outcome.failures) == (2, [])
             local = execute(specs, store, workers=1)
             assert (local.skipped, local.stored) == (2, 0)
-            values = [r.front["values"] for r in store.runs("d")]
+            values = [[list(v) for v in r.front.values] for r in store.runs("d")]
     # the same runs computed locally give the same fronts
     with Store(tmp_path / "l.sqlite") as store:
         store.begin_campaign("d", "robot_grid", {})
         execute(specs, store, workers=1)
-        assert [r.front["values"] for r in store.runs("d")] == values
+        assert [[list(v) for v in r.front.values] for r in store.runs("d")] == values
 
 
 def test_scheduler_that_cannot_be_reached(tmp_path):
@@ -170,25 +173,25 @@ def test_scheduler_that_cannot_be_reached(tmp_path):
 
 
 def test_unverified_fronts_are_verified_later_by_storm(tmp_path):
-    from parley_core.experiment.campaign import is_verified, verify_stored
+    from parley_core.experiment.campaign import verify_stored
 
     specs = plan("v", ROBOT, [("seed=1",), ("seed=2",)], ["size=4", "max_interval=3"], 2, Budget(population=6, generations=2, verify=False))
     with Store(tmp_path / "v.sqlite") as store:
         store.begin_campaign("v", "robot_grid", {})
         execute(specs, store, workers=1)
         before = list(store.runs("v"))
-        assert len(before) == 4 and not any(is_verified(r) for r in before)
+        assert len(before) == 4 and not any(r.verified for r in before)
         # a sample first: repetition 1 of each instance
         assert verify_stored(store, "v", "robot_grid", workers=1, repetitions={1})[:2] == (2, 0)
-        assert sorted(r.repetition for r in store.runs("v") if is_verified(r)) == [1, 1]
+        assert sorted(r.repetition for r in store.runs("v") if r.verified) == [1, 1]
         document = report.table2_document("v", "robot_grid", {}, list(store.runs("v")), [], [], ["success >=", "cost <="], False)
         assert "Front values: Storm's for 2 of 4 runs" in document
         now, already, worst = verify_stored(store, "v", "robot_grid", workers=1)
         assert (now, already) == (2, 2) and worst <= 1e-9
         after = list(store.runs("v"))
-        assert all(is_verified(r) for r in after)
+        assert all(r.verified for r in after)
         for old, new in zip(before, after):
-            assert np.allclose(old.front["values"], new.front["values"], atol=1e-9)
+            assert np.allclose(old.front.values, new.front.values, atol=1e-9)
         assert verify_stored(store, "v", "robot_grid", workers=1)[:2] == (0, 4)
         document = report.table2_document("v", "robot_grid", {}, after, [], [], ["success >=", "cost <="], False)
         assert "Front values: Storm's, every front re-checked" in document

@@ -9,7 +9,7 @@ from collections import deque
 import numpy as np
 import pytest
 
-from parley_core.evaluate import kernels
+from parley_core.quotient import kernels
 
 
 def random_dtmc(seed: int, n: int = 60, single: float = 0.0):

@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 from attrs import field, frozen, validators
 
-from parley_core.casestudy import CaseStudy, options_as_dict, parse_assignments
+from parley_core.casestudy import CaseStudy
+from parley_core.options import options_as_dict, parse_assignments
 from parley_core.errors import OptionError
 
 

@@ -74,7 +74,7 @@ def test_every_supported_kind_agrees_with_storm_on_every_policy():
 def test_the_direct_solve_after_the_sweep_limit_agrees_with_storm(monkeypatch):
     # one sweep is never enough here, so every iterative objective ends in the direct solve,
     # where states that cannot reach the target must be left out of I - P
-    from parley_core.evaluate import quotient as module
+    from parley_core.quotient import solver as module
 
     monkeypatch.setattr(module, "MAX_SWEEPS", 1)
     kinds = ("reach", "until", "reward_reach", "total_finite")

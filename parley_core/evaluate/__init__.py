@@ -2,18 +2,41 @@
 
 :class:`~parley_core.evaluate.storm.StormEvaluator` is the reference and the judge of
 correctness: it instantiates the decision constants, builds the DTMC with Storm and checks
-each objective.
+each objective. :class:`~parley_core.evaluate.quotient.QuotientEvaluator` is the fast path
+(:mod:`parley_core.quotient`). :func:`make_evaluator` picks one by :class:`EvaluatorKind`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Protocol, runtime_checkable
+import enum
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
-Progress = Callable[[int], None]
-"""Called with the number of policies finished since the last call."""
+from parley_core.errors import OptionError
+from parley_core.progress import Progress
+
+if TYPE_CHECKING:
+    from parley_core.model import Family
+    from parley_core.quotient.mdp import QuotientMDP
+
+
+class EvaluatorKind(enum.Enum):
+    """The evaluators a run can search with."""
+
+    QUOTIENT = "quotient"
+    """One MDP for all policies, solved by compiled kernels (fast; the default)."""
+    STORM = "storm"
+    """Build and check each policy's DTMC with Storm (the reference)."""
+
+    @classmethod
+    def of(cls, kind: EvaluatorKind | str) -> EvaluatorKind:
+        try:
+            return cls(kind)
+        except ValueError:
+            raise OptionError(
+                f"unknown evaluator {kind!r}; valid: {', '.join(k.value for k in cls)}"
+            ) from None
 
 
 @runtime_checkable
@@ -29,3 +52,20 @@ class Evaluator(Protocol):
     def close(self) -> None:
         """Release worker processes and other resources; the evaluator may not be used afterwards."""
         ...
+
+
+def make_evaluator(
+    family: Family,
+    kind: EvaluatorKind | str = EvaluatorKind.QUOTIENT,
+    workers: int | None = None,
+    mdp: QuotientMDP | None = None,
+) -> Evaluator:
+    """The evaluator of ``kind`` for the family (``mdp``: a quotient MDP to reuse)."""
+    kind = EvaluatorKind.of(kind)
+    if kind is EvaluatorKind.QUOTIENT:
+        from parley_core.evaluate.quotient import QuotientEvaluator
+
+        return QuotientEvaluator(family, workers=workers, mdp=mdp)
+    from parley_core.evaluate.storm import StormEvaluator
+
+    return StormEvaluator(family, workers=workers)

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import multiprocessing
-import os
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
@@ -12,9 +10,10 @@ import stormpy.developer as storm_dev
 from attrs import frozen
 
 from parley_core.errors import ModelError
-from parley_core.evaluate import Progress
+from parley_core.evaluate.pool import default_workers, spawn_pool
 from parley_core.model import Family
 from parley_core.prism import program as prism
+from parley_core.progress import Progress
 
 
 PRECISION = "1/1000000000000"
@@ -117,7 +116,7 @@ class StormEvaluator:
         self.family = family
         self.task = StormTask.of(family)
         self.local = StormChecker(self.task)  # also validates the family before any work is sent out
-        self.workers = max(1, workers if workers is not None else (os.cpu_count() or 1))
+        self.workers = default_workers(workers)
         self._pool: ProcessPoolExecutor | None = None
 
     def evaluate(self, policies: np.ndarray, progress: Progress | None = None) -> np.ndarray:
@@ -140,7 +139,7 @@ class StormEvaluator:
 
     def _executor(self) -> ProcessPoolExecutor:
         if self._pool is None:
-            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"))
+            self._pool = spawn_pool(self.workers)
         return self._pool
 
     def close(self) -> None:
@@ -153,10 +152,3 @@ class StormEvaluator:
 
     def __exit__(self, *exc) -> None:
         self.close()
-
-
-def check_policy(family: Family, values) -> dict[str, float]:
-    """Storm's values of one policy, by objective name (a convenience for tests and scripts)."""
-    checker = StormChecker(StormTask.of(family))
-    return dict(zip((o.name for o in family.objectives), checker.check(values)))
-

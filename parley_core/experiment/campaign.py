@@ -11,29 +11,45 @@ from __future__ import annotations
 
 import glob
 import itertools
-import multiprocessing
 import os
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from attrs import asdict, field, frozen
+from attrs import asdict, evolve, field, frozen
 
-from parley_core.casestudy import CaseStudy, options_as_dict, parse_assignments
+from parley_core.casestudy import CaseStudy
 from parley_core.errors import OptionError
-from parley_core.experiment.store import RunRecord, Store
+from parley_core.evaluate import EvaluatorKind
+from parley_core.evaluate.pool import default_workers, spawn_pool
+from parley_core.experiment.store import RunRecord, Store, front_from_json
+from parley_core.options import options_as_dict, parse_assignments
+from parley_core.progress import Progress
+from parley_core.search import SearchSettings
+from parley_core.search import default as search_default
 
 
 @frozen(kw_only=True)
 class Budget:
     """What every run of a campaign shares: search budget, evaluator, verification."""
 
-    population: int = 100
-    generations: int = 40
-    evaluator: str = "quotient"
+    population: int = search_default("population")
+    generations: int | None = search_default("generations")
+    evaluator: str = field(default=EvaluatorKind.QUOTIENT.value, converter=lambda k: EvaluatorKind.of(k).value)
     verify: bool = True
+    max_evaluations: int | None = None
+    time_limit: float | None = None
+
+    def settings(self, seed: int) -> SearchSettings:
+        return SearchSettings(
+            population=self.population,
+            generations=self.generations,
+            max_evaluations=self.max_evaluations,
+            time_limit=self.time_limit,
+            seed=seed,
+        )
 
 
 @frozen(kw_only=True)
@@ -128,13 +144,13 @@ def run_spec(spec: RunSpec) -> RunRecord:
     """Run one campaign run in this process (one worker: campaigns parallelise over runs)."""
     from parley_core.pipeline import prepare, run
     from parley_core.plugins import load_registry
-    from parley_core.search import SearchSettings
 
     case = load_registry().get(spec.case)
     options = case.options(spec.assignments)
     prepared = prepare(case, options)
-    settings = SearchSettings(population=spec.budget.population, generations=spec.budget.generations, seed=spec.seed)
-    result = run(prepared, settings, evaluator=spec.budget.evaluator, workers=1, verify=spec.budget.verify)
+    result = run(
+        prepared, spec.budget.settings(spec.seed), evaluator=spec.budget.evaluator, workers=1, verify=spec.budget.verify
+    )
     family = result.family
     return RunRecord(
         campaign=spec.campaign,
@@ -142,19 +158,16 @@ def run_spec(spec: RunSpec) -> RunRecord:
         repetition=spec.repetition,
         seed=spec.seed,
         options=options_as_dict(options),
-        objectives=[{"name": o.name, "direction": o.direction.value, "formula": o.formula} for o in family.objectives],
-        front={
-            "policies": [list(p.values) for p in result.front.policies],
-            "values": [list(v) for v in result.front.values],
-        },
-        baseline={"names": [p.name for p in result.baseline.policies], "values": [list(v) for v in result.baseline.values]},
+        objectives=family.objectives,
+        front=result.front,
+        baseline=result.baseline,
         summary={
             "decisions": len(family.decisions),
             "evaluations": result.search.evaluations,
             "generations": result.search.generations,
             "timings": {k: round(v, 4) for k, v in result.timings.items()},
-            "verification": asdict(result.verification),
-            "evaluator": result.evaluator,
+            "verification": result.verification.to_json(),
+            "evaluator": result.evaluator.value,
             "evaluator_details": result.evaluator_info,
         },
     )
@@ -174,7 +187,7 @@ def execute(
     *,
     workers: int | None = None,
     scheduler: str | None = None,
-    on_done: Callable[[RunSpec], None] | None = None,
+    progress: Progress | None = None,
 ) -> Outcome:
     """Run what the store lacks; store each run as it finishes. A failed run is reported and
     not stored (rerunning the campaign retries it)."""
@@ -189,13 +202,13 @@ def execute(
             failures.append((spec.instance, spec.repetition, f"{type(error).__name__}: {error}"))
         elif store.add(result):
             stored += 1
-        if on_done:
-            on_done(spec)
+        if progress:
+            progress(1)
 
     if todo and scheduler is not None:
         _execute_dask(todo, scheduler, finish)
     elif todo:
-        workers = max(1, workers if workers is not None else (os.cpu_count() or 1))
+        workers = default_workers(workers)
         if workers == 1:
             for spec in todo:
                 try:
@@ -205,7 +218,7 @@ def execute(
                 else:
                     finish(spec, record, None)
         else:
-            with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+            with spawn_pool(workers) as pool:
                 futures = {pool.submit(run_spec, spec): spec for spec in todo}
                 for future in as_completed(futures):
                     spec = futures[future]
@@ -233,62 +246,54 @@ def _execute_dask(todo: Sequence[RunSpec], scheduler: str, finish) -> None:
         client.close()
 
 
-def records_values(record: RunRecord) -> tuple[np.ndarray, np.ndarray]:
-    """A stored run's front and baseline values as arrays."""
-    n = len(record.objectives)
-    return (
-        np.array(record.front["values"], dtype=float).reshape(-1, n),
-        np.array(record.baseline["values"], dtype=float).reshape(-1, n),
-    )
-
-
 def describe(budget: Budget, fixed: Sequence[str]) -> dict[str, Any]:
-    return {**asdict(budget), "fixed_options": list(fixed)}
-
-
-def is_verified(record: RunRecord) -> bool:
-    return str(record.summary.get("verification", {}).get("by", "")).startswith("storm")
+    """A campaign's settings as its store records them (limits that are not set are left out,
+    so stores of campaigns without them resume)."""
+    settings = asdict(budget)
+    for key in ("max_evaluations", "time_limit"):
+        if settings[key] is None:
+            del settings[key]
+    return {**settings, "fixed_options": list(fixed)}
 
 
 def verify_record(case_name: str, record: RunRecord) -> RunRecord:
     """Re-check a stored front with the Storm evaluator; keep Storm's values and the
     non-dominated policies among them, and record the largest difference."""
-    from attrs import evolve
-
     from parley_core import metrics
-    from parley_core.model import Direction
-    from parley_core.pipeline import check_with_storm, prepare
+    from parley_core.pipeline import prepare
     from parley_core.plugins import load_registry
+    from parley_core.verify import check_with_storm
 
     case = load_registry().get(case_name)
-    assignments = [f"{k}={'none' if v is None else v}" for k, v in record.options.items()]
-    family = prepare(case, case.options(assignments)).family
-    policies = np.array(record.front["policies"], dtype=np.int64).reshape(-1, len(family.decisions))
-    searched = np.array(record.front["values"], dtype=float).reshape(len(policies), -1)
+    family = prepare(case, case.options_from_json(record.options)).family
+    policies = np.array([p.values for p in record.front.policies], dtype=np.int64).reshape(-1, len(family.decisions))
+    searched = record.values()[0]
     verification, checked = check_with_storm(family, policies, searched, workers=1)
-    keep = metrics.nondominated(checked, [Direction(o["direction"]) for o in record.objectives])
-    return evolve(
-        record,
-        front={"policies": policies[keep].tolist(), "values": checked[keep].tolist()},
-        summary={**record.summary, "verification": asdict(verification)},
-    )
+    keep = metrics.nondominated(checked, [o.direction for o in record.objectives])
+    front = front_from_json(record.objectives, {"policies": policies[keep].tolist(), "values": checked[keep].tolist()})
+    return evolve(record, front=front, summary={**record.summary, "verification": verification.to_json()})
 
 
 def verify_stored(
-    store: Store, campaign: str, case_name: str, *, workers: int | None = None, repetitions: set[int] | None = None, on_done=None
+    store: Store,
+    campaign: str,
+    case_name: str,
+    *,
+    workers: int | None = None,
+    repetitions: set[int] | None = None,
+    progress: Progress | None = None,
 ) -> tuple[int, int, float]:
     """Verify every stored front of a campaign (of the given repetitions, or all) that Storm
     has not checked yet; returns (verified now, already verified, largest difference)."""
     records = [r for r in store.runs(campaign) if repetitions is None or r.repetition in repetitions]
-    todo = [r for r in records if not is_verified(r)]
+    todo = [r for r in records if not r.verified]
     worst = 0.0
-    workers = max(1, workers if workers is not None else (os.cpu_count() or 1))
-    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with spawn_pool(default_workers(workers)) as pool:
         futures = {pool.submit(verify_record, case_name, r): r for r in todo}
         for future in as_completed(futures):
             checked = future.result()
             store.replace_front(checked)
-            worst = max(worst, checked.summary["verification"]["max_difference"])
-            if on_done:
-                on_done(checked)
+            worst = max(worst, checked.verification.max_difference)
+            if progress:
+                progress(1)
     return len(todo), len(records) - len(todo), worst

@@ -26,19 +26,16 @@ from collections import defaultdict
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from attrs import frozen
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from attrs import frozen  # noqa: E402
-
-from parley_core import metrics  # noqa: E402
-from parley_core.errors import OptionError  # noqa: E402
-from parley_core.experiment.campaign import is_verified, records_values  # noqa: E402
-from parley_core.experiment.stats import compare  # noqa: E402
-from parley_core.experiment.store import RunRecord  # noqa: E402
-from parley_core.model import Direction  # noqa: E402
+from parley_core import metrics
+from parley_core.casestudy import CaseStudy
+from parley_core.errors import OptionError
+from parley_core.experiment.stats import compare
+from parley_core.experiment.store import RunRecord
+from parley_core.model import Direction
+from parley_core.plotting import figure, save
 
 Setting = tuple[float, ...]
 
@@ -119,9 +116,9 @@ def analyse(records: Sequence[RunRecord], settings: Sequence[Setting], published
     rows = []
     for instance, runs in by_instance.items():
         runs = sorted(runs, key=lambda r: r.repetition)
-        directions = [Direction(o["direction"]) for o in runs[0].objectives]
-        fronts = [records_values(r)[0] for r in runs]
-        baseline = records_values(runs[0])[1]
+        directions = [o.direction for o in runs[0].objectives]
+        fronts = [r.values()[0] for r in runs]
+        baseline = runs[0].values()[1]
         theirs = published_fronts(published, instance, len(directions)) if published else []
         everything = np.vstack([baseline, *fronts, *theirs])
         as_min = everything * np.array([d.sign for d in directions])
@@ -204,8 +201,8 @@ def table2_document(
     """table2.md: what the campaign holds, whose values its fronts are, and Table 2."""
     instances = {r.instance for r in records}
     reps = {r.repetition for r in records}
-    checked = [r for r in records if is_verified(r)]
-    worst = max((r.summary["verification"]["max_difference"] for r in checked), default=0.0)
+    checked = [r for r in records if r.verified]
+    worst = max((r.verification.max_difference for r in checked if r.verification), default=0.0)
     if len(checked) == len(records):
         provenance = f"Storm's, every front re-checked (largest difference from the search's values {worst:.1e})"
     elif checked:
@@ -254,7 +251,7 @@ def box_plots(rows: Sequence[Row], setting: Setting, caption: str, path_stem: Pa
         base = "baseline_hv" if key == "hv" else "baseline_spread"
         data = [np.array(getattr(r, key)) - getattr(r, base) for r in selected]
         width = max(6.0, 0.14 * len(selected) + 2)
-        fig, ax = plt.subplots(figsize=(width, 3.8))
+        fig, ax = figure(width, 3.8)
         ax.boxplot(data, showfliers=True, flierprops={"markersize": 2})
         ax.axhline(0.0, color="tab:red", lw=0.8)
         ax.set_xticks(range(1, len(selected) + 1))
@@ -264,7 +261,41 @@ def box_plots(rows: Sequence[Row], setting: Setting, caption: str, path_stem: Pa
         fig.tight_layout()
         for suffix in (".png", ".pdf"):
             target = path_stem.with_name(f"{path_stem.name}_{key}{suffix}")
-            fig.savefig(target, dpi=140)
+            save(fig, target, dpi=140, tight=False)
             written.append(target)
-        plt.close(fig)
     return written
+
+
+def write_report(
+    records: Sequence[RunRecord],
+    out: Path,
+    *,
+    campaign: str,
+    case: CaseStudy,
+    settings_record: dict,
+    settings: Sequence[Setting] | None = None,
+    figure_setting: Setting | None = None,
+    published: Path | None = None,
+) -> tuple[str, list[Path]]:
+    """Write table2.md, table2.csv and the box plots of a campaign into ``out``; returns
+    table2.md's text and the files written. ``settings`` default to the case study's
+    requirement settings; the box plots show ``figure_setting``, by default the case
+    study's own if it is among the settings, else the first setting."""
+    if not records:
+        raise OptionError(f"campaign {campaign} has no finished run yet")
+    objectives = records[0].objectives
+    names = [o.name for o in objectives]
+    settings = list(settings) if settings else list(case.requirement_settings)
+    if not settings:
+        raise OptionError(f"{case.name} declares no requirement settings; give --setting (one bound per objective)")
+    if figure_setting is None:
+        figure_setting = case.figure_setting if case.figure_setting in settings else settings[0]
+    rows = analyse(records, settings, published)
+    header = [f"{o.name} {'>=' if o.direction is Direction.MAX else '<='}" for o in objectives]
+    text = table2_document(campaign, case.name, settings_record, records, rows, settings, header, published is not None)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "table2.md").write_text(text)
+    (out / "table2.csv").write_text(rows_csv(rows, names))
+    caption = ", ".join(f"{h} {b:g}" for h, b in zip(header, figure_setting))
+    figures = box_plots(rows, figure_setting, caption, out / "gains")
+    return text, [out / "table2.md", out / "table2.csv", *figures]

@@ -8,19 +8,23 @@ search space (values per decision to the power of the decisions) and peak memory
 
 from __future__ import annotations
 
+import json
 import math
 import resource
 import time
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from parley_core.augment import augment
 from parley_core.casestudy import CaseStudy
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.evaluate.storm import StormEvaluator
+from parley_core.pipeline import make_family
+from parley_core.progress import Progress
 from parley_core.search import SearchSettings, search
+from parley_core.search import default as search_default
 
 
 def _peak_mb(who: int) -> float:
@@ -33,12 +37,12 @@ def measure(
     *,
     storm_policies: int = 20,
     quotient_policies: int = 200,
-    population: int = 100,
-    generations: int = 40,
+    population: int = search_default("population"),
+    generations: int = search_default("generations"),
     workers: int = 2,
     seed: int = 0,
 ) -> dict[str, Any]:
-    family = augment(case.build(case.options(assignments)), prune=case.prune)
+    family = make_family(case.build(case.options(assignments)), prune=case.prune)
     rng = np.random.default_rng(seed)
     lows, highs = np.array(family.lows), np.array(family.highs)
     policies = rng.integers(lows, highs + 1, size=(max(storm_policies, quotient_policies), len(family.decisions)))
@@ -111,8 +115,28 @@ def _measure_by_name(case_name: str, assignments: Sequence[str], kwargs: dict[st
 
 def measure_isolated(case_name: str, assignments: Sequence[str], **kwargs: Any) -> dict[str, Any]:
     """:func:`measure` in a fresh process, so that memory figures do not mix between instances."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+    from parley_core.evaluate.pool import spawn_pool
 
-    with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with spawn_pool(1) as pool:
         return pool.submit(_measure_by_name, case_name, list(assignments), kwargs).result()
+
+
+def write_table3(case: CaseStudy, sizes: Sequence[int], option: str, fixed: Sequence[str], *, storm_policies: int,
+                 out: Path | None = None, progress: Progress | None = None) -> str:
+    """Measure every size in a fresh process; write table3.md and table3.json into ``out``
+    (if given); returns the table."""
+    for size in sizes:
+        case.options([*fixed, f"{option}={size}"])  # every size's options are checked first
+    rows = []
+    for size in sizes:
+        row = measure_isolated(case.name, [*fixed, f"{option}={size}"], storm_policies=storm_policies)
+        row["instance"] = f"{option}={size}"
+        rows.append(row)
+        if progress:
+            progress(1)
+    table = table3_markdown(rows)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "table3.md").write_text(table)
+        (out / "table3.json").write_text(json.dumps(rows, indent=2))
+    return table

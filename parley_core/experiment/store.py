@@ -16,9 +16,12 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from attrs import frozen
+import numpy as np
+from attrs import field, frozen
 
-from parley_core.errors import OutputError
+from parley_core.errors import OptionError, OutputError
+from parley_core.model import Objective, Policy, Valued
+from parley_core.verify import Verification
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS campaigns (
@@ -52,13 +55,53 @@ class RunRecord:
     repetition: int
     seed: int
     options: dict[str, Any]
-    objectives: list[dict[str, str]]
-    front: dict[str, Any]
-    """{"policies": [[decision values]...], "values": [[objective values]...]}"""
-    baseline: dict[str, Any]
-    """{"names": [...], "values": [[...]...]}"""
+    """The case study's options in JSON form (:func:`parley_core.options.options_as_dict`)."""
+    objectives: tuple[Objective, ...] = field(converter=tuple)
+    front: Valued
+    """The front's policies (decision values; named p1, p2, ... in stored order) and values."""
+    baseline: Valued
+    """The baselines by name with their values (their decision values are not stored)."""
     summary: dict[str, Any]
     """evaluations, timings, verification, quotient size... (JSON-friendly)"""
+
+    @property
+    def verification(self) -> Verification | None:
+        data = self.summary.get("verification")
+        return Verification.from_json(data) if data else None
+
+    @property
+    def verified(self) -> bool:
+        """Whether Storm vouches for the front's values."""
+        verification = self.verification
+        return verification is not None and verification.by.by_storm
+
+    def values(self) -> tuple[np.ndarray, np.ndarray]:
+        """The front's and the baseline's values as arrays [points, objectives]."""
+        n = len(self.objectives)
+        return (
+            np.array(self.front.values, dtype=float).reshape(-1, n),
+            np.array(self.baseline.values, dtype=float).reshape(-1, n),
+        )
+
+    def front_json(self) -> dict[str, Any]:
+        return {"policies": [list(p.values) for p in self.front.policies], "values": [list(v) for v in self.front.values]}
+
+    def baseline_json(self) -> dict[str, Any]:
+        return {"names": [p.name for p in self.baseline.policies], "values": [list(v) for v in self.baseline.values]}
+
+
+def front_from_json(objectives: tuple[Objective, ...], data: dict[str, Any]) -> Valued:
+    return Valued(
+        objectives=objectives,
+        policies=[Policy(name=f"p{i + 1}", values=p) for i, p in enumerate(data["policies"])],
+        values=data["values"],
+    )
+
+
+def baseline_from_json(objectives: tuple[Objective, ...], data: dict[str, Any]) -> Valued:
+    return Valued(
+        objectives=objectives, policies=[Policy(name=n, values=()) for n in data["names"]], values=data["values"]
+    )
 
 
 class Store:
@@ -118,6 +161,17 @@ class Store:
         rows = self.connection.execute("SELECT name, case_study, settings FROM campaigns ORDER BY created").fetchall()
         return [(name, case, json.loads(settings)) for name, case, settings in rows]
 
+    def campaign(self, name: str | None = None) -> tuple[str, str, dict[str, Any]]:
+        """(name, case study, settings) of the named campaign, or of the store's only one."""
+        campaigns = self.campaigns()
+        if not campaigns:
+            raise OptionError(f"store {self.path} holds no campaign")
+        names = [c[0] for c in campaigns]
+        chosen = name or (names[0] if len(names) == 1 else None)
+        if chosen not in names:
+            raise OptionError(f"give --name: store {self.path} holds campaigns {', '.join(names)}")
+        return next(c for c in campaigns if c[0] == chosen)
+
     def done(self, campaign: str) -> set[tuple[str, int]]:
         rows = self.connection.execute("SELECT instance, repetition FROM runs WHERE campaign = ?", (campaign,))
         return {(instance, repetition) for instance, repetition in rows}
@@ -130,8 +184,12 @@ class Store:
                 "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (
                     record.campaign, record.instance, record.repetition, record.seed,
-                    json.dumps(record.options), json.dumps(record.objectives), json.dumps(record.front),
-                    json.dumps(record.baseline), json.dumps(record.summary), time.time(),
+                    json.dumps(record.options),
+                    json.dumps([o.to_json() for o in record.objectives]),
+                    json.dumps(record.front_json()),
+                    json.dumps(record.baseline_json()),
+                    json.dumps(record.summary),
+                    time.time(),
                 ),
             )
         return cursor.rowcount == 1
@@ -143,9 +201,16 @@ class Store:
             query += " WHERE campaign = ?"
             args = (campaign,)
         for row in self.connection.execute(query + " ORDER BY campaign, instance, repetition", args):
+            objectives = tuple(Objective.from_json(o) for o in json.loads(row[5]))
             yield RunRecord(
-                campaign=row[0], instance=row[1], repetition=row[2], seed=row[3], options=json.loads(row[4]),
-                objectives=json.loads(row[5]), front=json.loads(row[6]), baseline=json.loads(row[7]),
+                campaign=row[0],
+                instance=row[1],
+                repetition=row[2],
+                seed=row[3],
+                options=json.loads(row[4]),
+                objectives=objectives,
+                front=front_from_json(objectives, json.loads(row[6])),
+                baseline=baseline_from_json(objectives, json.loads(row[7])),
                 summary=json.loads(row[8]),
             )
 
@@ -154,5 +219,11 @@ class Store:
         with self._transaction():
             self.connection.execute(
                 "UPDATE runs SET front = ?, summary = ? WHERE campaign = ? AND instance = ? AND repetition = ?",
-                (json.dumps(record.front), json.dumps(record.summary), record.campaign, record.instance, record.repetition),
+                (
+                    json.dumps(record.front_json()),
+                    json.dumps(record.summary),
+                    record.campaign,
+                    record.instance,
+                    record.repetition,
+                ),
             )

@@ -181,3 +181,19 @@ def disjunction(parts: Iterable[str]) -> str:
     if len(parts) == 1:
         return parts[0]
     return " | ".join(f"({p})" for p in parts)
+
+
+FORMATS = ("prism", "evochecker", "paynt")
+"""The syntaxes a decision constant can be declared in (``parley augment --format``)."""
+
+
+def declaration(name: str, low: int, high: int, form: str = "prism") -> str:
+    """A decision constant's declaration: PRISM's undefined ``const int``, EvoChecker's
+    ``evolve int`` with its range, or PAYNT's ``hole`` with its values."""
+    if form == "prism":
+        return f"const int {name};"
+    if form == "evochecker":
+        return f"evolve int {name} [{low}..{high}];"
+    if form == "paynt":
+        return f"hole int {name} in {{{','.join(str(v) for v in range(low, high + 1))}}};"
+    raise ValueError(f"unknown declaration form {form!r}; valid: {', '.join(FORMATS)}")

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from attrs import field, frozen
 
-from parley_core.errors import OptionError, read_text
+from parley_core import OptionError, read_text
 
 OBSTACLE = 10
 """Cells weighing this much or more are obstacles."""

@@ -4,24 +4,24 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+from matplotlib import colormaps
+from matplotlib.colors import Normalize
+from matplotlib.patches import Rectangle
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.colors import Normalize  # noqa: E402
+from parley_core.plotting import figure, save
 
-from parley_plugins.tas.generator import Scenario  # noqa: E402
+from parley_plugins.tas.generator import Scenario
 
 
 def draw_policy(s: Scenario, intervals: dict[tuple[int, int], int], path: Path) -> None:
     """``intervals`` maps (bhat, load) to the policy's c; c = max_interval+1 is drawn as "never"."""
     levels = len(s.backup_levels)
     never = s.max_interval + 1
-    fig, ax = plt.subplots(figsize=(1.6 + 1.3 * levels, 2.8))
-    cmap = plt.get_cmap("viridis_r")
+    fig, ax = figure(1.6 + 1.3 * levels, 2.8)
+    cmap = colormaps["viridis_r"]
     norm = Normalize(vmin=1, vmax=never)
     for (level, load), value in intervals.items():
-        ax.add_patch(plt.Rectangle((level - 0.5, load - 0.5), 1, 1, color=cmap(norm(value)), alpha=0.6))
+        ax.add_patch(Rectangle((level - 0.5, load - 0.5), 1, 1, color=cmap(norm(value)), alpha=0.6))
         ax.text(level, load, "never" if value >= never else str(value), ha="center", va="center", fontsize=11, weight="bold")
     ax.set_xlim(-0.5, levels - 0.5)
     ax.set_ylim(-0.5, 1.5)
@@ -38,6 +38,4 @@ def draw_policy(s: Scenario, intervals: dict[tuple[int, int], int], path: Path) 
     ax.set_xlabel("estimated backup level (bhat)")
     ax.set_ylabel("load")
     ax.set_title("probe the backup every k-th execution", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    save(fig, path, dpi=130)

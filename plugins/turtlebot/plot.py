@@ -8,13 +8,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+from matplotlib import colormaps
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Normalize
+from matplotlib.patches import Polygon, Rectangle
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.colors import Normalize  # noqa: E402
+from parley_core.plotting import figure, save
 
-from parley_plugins.turtlebot.world import STEP, World  # noqa: E402
+from parley_plugins.turtlebot.world import STEP, World
 
 # Triangle corners (relative to the cell centre) and label offset, per heading number.
 _TRIANGLES = {
@@ -26,20 +27,20 @@ _TRIANGLES = {
 
 
 def draw_policy(world: World, periods: dict[tuple[int, int, int], int], path: Path) -> None:
-    fig, ax = plt.subplots(figsize=(7.2, 6.2))
+    fig, ax = figure(7.2, 6.2)
     shown = list(periods.values())
     norm = Normalize(vmin=min(shown, default=1), vmax=max(max(shown, default=1), min(shown, default=1) + 1))
-    cmap = plt.get_cmap("viridis_r")
+    cmap = colormaps["viridis_r"]
     for x in range(world.size):
         for y in range(world.size):
             if (x, y) in world.obstacles:
-                ax.add_patch(plt.Rectangle((x - 0.5, y - 0.5), 1, 1, color="0.15"))
+                ax.add_patch(Rectangle((x - 0.5, y - 0.5), 1, 1, color="0.15"))
                 continue
             for heading, (corners, (lx, ly)) in _TRIANGLES.items():
                 value = periods.get((x, y, heading))
                 if value is None:
                     continue
-                ax.add_patch(plt.Polygon([(x + cx, y + cy) for cx, cy in corners], color=cmap(norm(value)), alpha=0.6, lw=0.3, ec="white"))
+                ax.add_patch(Polygon([(x + cx, y + cy) for cx, cy in corners], color=cmap(norm(value)), alpha=0.6, lw=0.3, ec="white"))
                 ax.text(x + lx, y + ly, str(value), ha="center", va="center", fontsize=7)
             move = world.plan.get((x, y))
             if move is not None:
@@ -49,7 +50,7 @@ def draw_policy(world: World, periods: dict[tuple[int, int, int], int], path: Pa
                     arrowprops={"arrowstyle": "->", "color": "firebrick", "lw": 1.2},
                 )
     for (x, y), mark in ((world.start, "S"), (world.target, "T")):
-        ax.add_patch(plt.Rectangle((x - 0.5, y - 0.5), 1, 1, fill=False, edgecolor="crimson", lw=2))
+        ax.add_patch(Rectangle((x - 0.5, y - 0.5), 1, 1, fill=False, edgecolor="crimson", lw=2))
         ax.text(x - 0.36, y - 0.36, mark, color="crimson", fontsize=10, weight="bold", ha="center", va="center")
     ax.set_xlim(-0.5, world.size - 0.5)
     ax.set_ylim(-0.5, world.size - 0.5)
@@ -59,7 +60,5 @@ def draw_policy(world: World, periods: dict[tuple[int, int, int], int], path: Pa
     ax.set_xlabel("x (estimated cell)")
     ax.set_ylabel("y (estimated cell)")
     ax.set_title("localise after every k-th move (k per estimated cell and heading)", fontsize=10)
-    fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, fraction=0.046, pad=0.04, label="period k")
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, fraction=0.046, pad=0.04, label="period k")
+    save(fig, path, dpi=130)

@@ -21,7 +21,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from parley_core.errors import OptionError, read_text
+from parley_core import OptionError, read_text
 from parley_plugins.turtlebot.world import CRASH, OUT, Outcome, World
 
 _CONSTANT = re.compile(r"const\s+int\s+(\w+)\s*=\s*(\d+)\s*;")

@@ -5,13 +5,14 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-import matplotlib
+from matplotlib import colormaps
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Normalize
+from matplotlib.patches import Rectangle
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.colors import Normalize  # noqa: E402
+from parley_core.plotting import figure, save
 
-from parley_plugins.web_ids.generator import LEVELS, MAX_THRESHOLD, RESTORE_A  # noqa: E402
+from parley_plugins.web_ids.generator import LEVELS, MAX_THRESHOLD, RESTORE_A
 
 RULES = {1: "fresh rules", 0: "stale rules"}
 
@@ -26,22 +27,20 @@ def label(threshold: int) -> str:
 
 def draw_policy(thresholds: Mapping[tuple[int, int], int], path: Path) -> None:
     """``thresholds`` maps (level, fresh) to the scan threshold."""
-    fig, ax = plt.subplots(figsize=(6.4, 2.8))
+    fig, ax = figure(6.4, 2.8)
     norm = Normalize(vmin=0, vmax=MAX_THRESHOLD)
-    cmap = plt.get_cmap("viridis")
+    cmap = colormaps["viridis"]
     for column, _name in enumerate(LEVELS):
         for row, fresh in enumerate(RULES):
             value = thresholds.get((column, fresh))
             if value is None:
                 continue
-            ax.add_patch(plt.Rectangle((column - 0.5, row - 0.5), 1, 1, color=cmap(norm(value)), alpha=0.6))
+            ax.add_patch(Rectangle((column - 0.5, row - 0.5), 1, 1, color=cmap(norm(value)), alpha=0.6))
             ax.text(column, row, label(value), ha="center", va="center", fontsize=11, weight="bold")
     ax.set_xlim(-0.5, len(LEVELS) - 0.5)
     ax.set_ylim(len(RULES) - 0.5, -0.5)
     ax.set_xticks(range(len(LEVELS)), [f"{n}\n(restore A: {c:g})" for n, c in zip(LEVELS, RESTORE_A)])
     ax.set_yticks(range(len(RULES)), list(RULES.values()))
     ax.set_title("scan A when the IDS's estimate ahat reaches the threshold", fontsize=10)
-    fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, fraction=0.046, pad=0.04, label="threshold")
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, fraction=0.046, pad=0.04, label="threshold")
+    save(fig, path, dpi=130)

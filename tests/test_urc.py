@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from parley_core.cli import app
 from parley_core.errors import PolicyError
-from parley_core.runtime import URC, ObservationError
+from parley_core import URC, ObservationError
 
 runner = CliRunner()
 

@@ -16,13 +16,11 @@ from typing import Any
 
 from attrs import field, frozen
 
-from parley_core.errors import ParleyError, PolicyError, read_text
+from parley_core.errors import ObservationError, ParleyError, PolicyError
+from parley_core.files import read_text
+from parley_core.model import Service
 
 FORMAT = "parley-urc/1"
-
-
-class ObservationError(ParleyError):
-    """An observation the controller was not synthesised for."""
 
 
 @frozen(kw_only=True)
@@ -30,7 +28,7 @@ class URC:
     """An uncertainty reduction controller: observation valuation -> service decisions."""
 
     observation: tuple[str, ...] = field(converter=tuple)
-    services: tuple[dict[str, Any], ...] = field(converter=tuple)
+    services: tuple[Service, ...] = field(converter=tuple)
     table: Mapping[tuple[int, ...], Mapping[str, int]] = field(converter=dict)
     left_out: frozenset[tuple[int, ...]] = field(factory=frozenset, converter=frozenset)
     policy: str = ""
@@ -84,7 +82,7 @@ class URC:
             "policy": self.policy,
             "values": dict(self.values),
             "observation": list(self.observation),
-            "services": list(self.services),
+            "services": [service.to_json() for service in self.services],
             "decisions": [{"observation": list(v), "decision": dict(d)} for v, d in sorted(self.table.items())],
             "left_out": [list(v) for v in sorted(self.left_out)],
             "source": self.source,
@@ -105,7 +103,8 @@ class URC:
             raise PolicyError(f"controller file {path} is not a parley controller ({FORMAT}); give a file written by `parley select`")
         try:
             observation = [str(n) for n in data["observation"]]
-            constants = [s["constant"] for s in data["services"]]
+            services = [Service.from_json(s) for s in data["services"]]
+            constants = [s.constant for s in services]
             table = {}
             for entry in data["decisions"]:
                 valuation = tuple(int(v) for v in entry["observation"])
@@ -115,12 +114,12 @@ class URC:
                 table[valuation] = decision
             return cls(
                 observation=observation,
-                services=data["services"],
+                services=services,
                 table=table,
                 left_out=[tuple(int(v) for v in row) for row in data.get("left_out", [])],
                 policy=str(data.get("policy", "")),
                 values={str(k): float(v) for k, v in data.get("values", {}).items()},
                 source=str(data.get("source", "")),
             )
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, ParleyError) as exc:
             raise PolicyError(f"controller file {path} is malformed ({exc}); write it with `parley select`") from None

@@ -1,0 +1,24 @@
+"""The ``parley`` command: the only place that prints, colours or chooses exit codes.
+
+User errors (any :class:`~parley_core.errors.ParleyError`) end as one line on stderr,
+``error: ...``, with exit status 2. Progress goes to stderr, so ``--json`` output on stdout
+is one JSON document and nothing else.
+
+- :mod:`.app`: the typer applications; :mod:`.common`: errors, case studies, limits;
+  :mod:`.options`: the option types; :mod:`.console`: progress bars and tables;
+- command groups: :mod:`.case_studies` (list, options), :mod:`.synthesis` (run,
+  synthesize, augment), :mod:`.controllers` (select, simulate), :mod:`.evaluation`
+  (evaluate, baseline), :mod:`.experiment` (experiment run, verify, report, scalability).
+"""
+
+from __future__ import annotations
+
+from parley_core.cli import case_studies, synthesis, controllers, evaluation, experiment  # noqa: F401, I001  (they register commands, in this order)
+from parley_core.cli.app import app
+
+
+def main() -> None:
+    app()
+
+
+__all__ = ["app", "main"]

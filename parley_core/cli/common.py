@@ -1,0 +1,78 @@
+"""What every command shares: one-line user errors, case studies, search limits."""
+
+from __future__ import annotations
+
+import functools
+import sys
+from typing import Any
+
+import typer
+
+from parley_core.casestudy import CaseStudy
+from parley_core.errors import OptionError, ParleyError
+from parley_core.model import Constraint
+
+
+def user_errors(command):
+    """Turn ParleyError into one line on stderr and exit status 2."""
+
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except ParleyError as exc:
+            message = " ".join(str(exc).split())
+            print(f"error: {message}", file=sys.stderr)
+            raise typer.Exit(2) from None
+
+    return wrapper
+
+
+def registry():
+    from parley_core.plugins import load_registry
+
+    return load_registry()
+
+
+def case_study(name: str) -> CaseStudy:
+    return registry().get(name)
+
+
+def prepare_case(case_name: str, assignments: list[str] | None, reporter=None):
+    from parley_core.pipeline import prepare
+
+    case = case_study(case_name)
+    options = case.options(assignments or [])
+    return prepare(case, options, reporter)
+
+
+def constraints(texts: list[str] | None) -> tuple[Constraint, ...]:
+    return tuple(Constraint.parse(t) for t in texts or [])
+
+
+def search_settings(
+    *,
+    population: int,
+    generations: int | None,
+    max_evaluations: int | None,
+    time_limit: float | None,
+    seed: int,
+    constraint: list[str] | None = None,
+) -> Any:
+    """SearchSettings from the command line: without ``--generations``, the default number
+    of generations applies unless ``--max-evaluations`` or ``--time-limit`` is given."""
+    from parley_core.search import SearchSettings, default
+
+    if generations is None and max_evaluations is None and time_limit is None:
+        generations = default("generations")
+    try:
+        return SearchSettings(
+            population=population,
+            generations=generations,
+            max_evaluations=max_evaluations,
+            time_limit=time_limit,
+            seed=seed,
+            constraints=constraints(constraint),
+        )
+    except ValueError as exc:
+        raise OptionError(f"{exc}; give positive limits") from None

@@ -1,0 +1,121 @@
+"""Commands about controllers: select one from a front, simulate one."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from parley_core.cli.app import app
+from parley_core.cli.common import constraints, user_errors
+from parley_core.cli.console import fmt
+from parley_core.cli.options import ConstraintOption, JsonOption
+from parley_core.errors import OptionError
+
+
+@app.command("select")
+@user_errors
+def select_command(
+    run_dir: Annotated[Path, typer.Argument(help="A run directory of `parley run` or `parley synthesize`.")],
+    constraint: ConstraintOption = None,
+    prefer: Annotated[
+        str | None, typer.Option(help="Take the best policy on this objective (among those meeting the constraints).")
+    ] = None,
+    knee: Annotated[bool, typer.Option("--knee", help="Take the knee point (the default when --prefer is not given).")] = False,
+    out: Annotated[Path | None, typer.Option(help="Controller file to write (default: RUN_DIR/controller.json).")] = None,
+    json_: JsonOption = False,
+) -> None:
+    """Pick one policy from a front (best on an objective under constraints, or the knee) and write it as a controller."""
+    from parley_core import rundir
+    from parley_core.selection import controller, select
+
+    if prefer is not None and knee:
+        raise OptionError("give --prefer NAME or --knee, not both")
+    run = rundir.load(run_dir)
+    chosen = select(run, constraints(constraint), prefer)
+    urc = controller(run, chosen)
+    target = out or run_dir / "controller.json"
+    urc.save(target)
+    if json_:
+        print(json.dumps({"policy": chosen, "values": dict(urc.values), "controller": str(target)}, indent=2))
+    else:
+        values = ", ".join(f"{k} {fmt(v)}" for k, v in urc.values.items())
+        Console().print(f"selected {chosen} ({values}); wrote the controller to {target}")
+
+
+@app.command("simulate")
+@user_errors
+def simulate_command(
+    target: Annotated[
+        Path, typer.Argument(help="A run directory (of `parley run` or `parley synthesize`), or your PRISM model with --props.")
+    ],
+    policy: Annotated[Path, typer.Option(help="A controller file (`parley select`) or a policies CSV holding one policy.")],
+    props: Annotated[
+        Path | None,
+        typer.Option(help="With a PRISM model: the properties to simulate, each after a '// name: NAME, max|min' comment."),
+    ] = None,
+    episodes: Annotated[int, typer.Option(min=1, help="Simulated runs.")] = 10_000,
+    seed: Annotated[int, typer.Option(help="Seed of Storm's simulator.")] = 1,
+    max_steps: Annotated[int, typer.Option(min=1, help="Longest episode for unbounded reachability.")] = 10_000,
+    json_: JsonOption = False,
+) -> None:
+    """Simulate a policy with Storm's simulator; print empirical values with 99% intervals next to the model-checked ones."""
+    from parley_core.policies import policy_from_file
+    from parley_core.simulate import simulate
+
+    family = _simulated_family(target, policy, props)
+    values = policy_from_file(policy, family).values
+    results = simulate(family, values, episodes, seed, max_steps)
+    if json_:
+        document = [
+            r
+            if isinstance(r, str)
+            else {
+                "objective": r.objective,
+                "kind": r.kind,
+                "simulated": r.mean,
+                "interval99": [r.low, r.high],
+                "model_checked": r.checked,
+                "episodes": r.episodes,
+                "cut": r.cut,
+                "within_interval": bool(r.agrees),
+            }
+            for r in results
+        ]
+        print(json.dumps(document, indent=2))
+        return
+    table = Table(
+        title=f"{episodes} episodes of Storm's simulator (seed {seed}) against model checking", title_justify="left"
+    )
+    for column in ("objective", "simulated", "99% interval", "model-checked", "within"):
+        table.add_column(column, justify="right" if column != "objective" else "left")
+    for r in results:
+        if isinstance(r, str):
+            table.add_row(r, "", "", "", "")
+        else:
+            table.add_row(r.objective, fmt(r.mean), f"{fmt(r.low)} .. {fmt(r.high)}", fmt(r.checked), "yes" if r.agrees else "NO")
+    Console().print(table)
+
+
+def _simulated_family(target: Path, policy: Path, props: Path | None):
+    """The family a simulation runs on: a run directory's, or a user's model augmented
+    with the controller file's services and observation."""
+    from parley_core import rundir
+    from parley_core.urc import URC
+    from parley_core.usermodel import family_for_simulation, family_of_run
+
+    if target.is_dir():
+        if props is not None:
+            raise OptionError("--props is for a PRISM model; a run directory has its own properties.pctl")
+        return family_of_run(rundir.load(target))
+    if not target.is_file():
+        raise OptionError(f"{target} does not exist; give a run directory or a PRISM model file")
+    if props is None:
+        raise OptionError(f"simulating the model {target} needs --props FILE.pctl (the objectives to estimate)")
+    if policy.suffix != ".json":
+        raise OptionError(f"with a PRISM model, --policy must be a controller file of `parley select` (got {policy})")
+    return family_for_simulation(target, URC.load(policy), props)

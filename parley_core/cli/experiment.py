@@ -1,0 +1,210 @@
+"""Campaign commands: experiment run, verify, report, scalability."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+
+from parley_core.cli.app import experiment_app
+from parley_core.cli.common import case_study, search_settings, user_errors
+from parley_core.cli.console import progress_bars
+from parley_core.cli.options import (
+    POPULATION,
+    CaseArgument,
+    EvaluatorOption,
+    GenerationsOption,
+    MaxEvaluationsOption,
+    SetOption,
+    TimeLimitOption,
+)
+from parley_core.errors import OptionError
+from parley_core.evaluate import EvaluatorKind
+
+StoreOption = Annotated[Path, typer.Option(help="SQLite results file of `parley experiment run`.")]
+NameOption = Annotated[str | None, typer.Option(help="Campaign name (default: the store's only campaign).")]
+
+
+@experiment_app.command("run")
+@user_errors
+def experiment_run(
+    case: CaseArgument,
+    store: Annotated[Path, typer.Option(help="SQLite results file (created if missing; resumed if present).")],
+    reps: Annotated[int, typer.Option(min=1, help="Repetitions per instance (seeds first-seed, first-seed+1, ...).")] = 10,
+    grid: Annotated[
+        list[str] | None, typer.Option("--grid", metavar="KEY=V1,V2,...", help="Instances: the product of these option values.")
+    ] = None,
+    instances: Annotated[
+        str | None, typer.Option(help="Instances: one per file of a directory or glob (e.g. 'maps/map_*.csv').")
+    ] = None,
+    instance_option: Annotated[
+        str | None, typer.Option(help="The option that receives each --instances file (default: the first file option).")
+    ] = None,
+    set_: SetOption = None,
+    name: Annotated[str | None, typer.Option(help="Campaign name inside the store (default: the case study's name).")] = None,
+    population: Annotated[int, typer.Option(min=2, help="NSGA-II population size.")] = POPULATION,
+    generations: GenerationsOption = None,
+    max_evaluations: MaxEvaluationsOption = None,
+    time_limit: TimeLimitOption = None,
+    first_seed: Annotated[int, typer.Option(help="Seed of the first repetition.")] = 1,
+    evaluator: EvaluatorOption = EvaluatorKind.QUOTIENT.value,
+    verify: Annotated[
+        bool, typer.Option(help="Re-check every front policy with Storm (--no-verify keeps the search's values, and says so).")
+    ] = True,
+    workers: Annotated[
+        int | None, typer.Option("--workers", "-j", min=1, help="Runs at once on this machine (default: one per core).")
+    ] = None,
+    scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address (e.g. tcp://host:8786) to run on a cluster.")] = None,
+) -> None:
+    """Run a campaign; rerunning the same command resumes it, skipping finished runs."""
+    from parley_core.experiment.campaign import Budget, describe, execute, instances_from, plan
+    from parley_core.experiment.store import Store
+
+    study = case_study(case)
+    limits = search_settings(
+        population=population, generations=generations, max_evaluations=max_evaluations, time_limit=time_limit, seed=first_seed
+    )
+    budget = Budget(
+        population=limits.population,
+        generations=limits.generations,
+        max_evaluations=limits.max_evaluations,
+        time_limit=limits.time_limit,
+        evaluator=evaluator,
+        verify=verify,
+    )
+    chosen = instances_from(study, grid or [], instances, instance_option)
+    campaign = name or study.name
+    specs = plan(campaign, study, chosen, set_ or [], reps, budget, first_seed)
+    with Store(store) as results:
+        results.begin_campaign(campaign, study.name, {**describe(budget, set_ or []), "first_seed": first_seed})
+        already = len(results.done(campaign) & {(s.instance, s.repetition) for s in specs})
+        with progress_bars() as progress:
+            task = progress.add_task(f"campaign {campaign}", total=len(specs), completed=already)
+            outcome = execute(
+                specs, results, workers=workers, scheduler=scheduler, progress=lambda n: progress.advance(task, n)
+            )
+    Console().print(
+        f"campaign {campaign}: {outcome.planned} runs planned, {outcome.skipped} already stored, "
+        f"{outcome.stored} stored now, {len(outcome.failures)} failed; results in {store}"
+    )
+    for instance, repetition, message in outcome.failures[:10]:
+        print(f"failed: {instance} repetition {repetition}: {message}", file=sys.stderr)
+    if outcome.failures:
+        raise typer.Exit(1)
+
+
+def _existing(store: Path) -> None:
+    if not store.is_file():
+        raise OptionError(f"store {store} does not exist; give the file of `parley experiment run --store`")
+
+
+@experiment_app.command("verify")
+@user_errors
+def experiment_verify(
+    store: StoreOption,
+    name: NameOption = None,
+    workers: Annotated[int | None, typer.Option("--workers", "-j", min=1, help="Processes at once (default: one per core).")] = None,
+    repetition: Annotated[
+        list[int] | None,
+        typer.Option("--repetition", min=0, help="Only these repetitions (repeatable), e.g. 0 for a sample of one per instance."),
+    ] = None,
+) -> None:
+    """Re-check with Storm every stored front not yet checked (runs of --no-verify); resumable."""
+    from parley_core.experiment.campaign import verify_stored
+    from parley_core.experiment.store import Store
+
+    _existing(store)
+    wanted = set(repetition) if repetition else None
+    with Store(store) as results:
+        campaign, case_name, _settings = results.campaign(name)
+        selected = [r for r in results.runs(campaign) if wanted is None or r.repetition in wanted]
+        with progress_bars() as progress:
+            task = progress.add_task(f"verify {campaign}", total=len(selected))
+            progress.update(task, completed=sum(r.verified for r in selected))
+            now, before, worst = verify_stored(
+                results, campaign, case_name, workers=workers, repetitions=wanted, progress=lambda n: progress.advance(task, n)
+            )
+    Console().print(
+        f"campaign {campaign}: {now} fronts re-checked by Storm now, {before} already were; "
+        f"largest difference from the stored values {worst:.1e}"
+    )
+
+
+@experiment_app.command("report")
+@user_errors
+def experiment_report(
+    store: StoreOption,
+    out: Annotated[Path, typer.Option(help="Directory for the tables and figures.")],
+    name: NameOption = None,
+    setting: Annotated[
+        list[str] | None,
+        typer.Option("--setting", metavar="B1,B2", help="Requirement setting: worst acceptable value per objective (repeatable)."),
+    ] = None,
+    published: Annotated[
+        Path | None, typer.Option(help="Directory of published fronts ({instance}_rep{R}.front.tsv) to compare with.")
+    ] = None,
+    figure_setting: Annotated[
+        str | None,
+        typer.Option(metavar="B1,B2", help="Setting of the box plots (default: the case study's, if reported, else the first)."),
+    ] = None,
+    force: Annotated[bool, typer.Option(help="Replace the files of an existing --out directory.")] = False,
+) -> None:
+    """Report a campaign: Table 2 (per setting: better/worse/same than the baseline), box plots, CSV."""
+    from parley_core.experiment import report as campaign_report
+    from parley_core.experiment.store import Store
+    from parley_core.report import check_output
+
+    _existing(store)
+    if published is not None and not published.is_dir():
+        raise OptionError(f"--published {published} is not a directory")
+    check_output(out, force)
+    with Store(store) as results:
+        chosen, case_name, settings_record = results.campaign(name)
+        records = list(results.runs(chosen))
+    if not records:
+        raise OptionError(f"campaign {chosen} in {store} has no finished run yet")
+    n = len(records[0].objectives)
+    text, written = campaign_report.write_report(
+        records,
+        out,
+        campaign=chosen,
+        case=case_study(case_name),
+        settings_record=settings_record,
+        settings=[campaign_report.parse_setting(s, n) for s in setting or []],
+        figure_setting=campaign_report.parse_setting(figure_setting, n) if figure_setting else None,
+        published=published,
+    )
+    Console().print(text)
+    Console().print(f"wrote {out}/table2.md, table2.csv and {len(written) - 2} figures")
+
+
+@experiment_app.command("scalability")
+@user_errors
+def experiment_scalability(
+    case: CaseArgument,
+    sizes: Annotated[str, typer.Option(help="Comma-separated values of the size option, e.g. 5,10,15,20,30,50.")] = "5,10,15,20,30,50",
+    option: Annotated[str, typer.Option(help="The option the sizes go to.")] = "size",
+    set_: SetOption = None,
+    storm_policies: Annotated[
+        int, typer.Option(min=1, help="Policies timed with the Storm evaluator per size (a 50x50 robot_grid policy takes about 30 s).")
+    ] = 10,
+    out: Annotated[Path | None, typer.Option(help="Directory for table3.md and table3.json.")] = None,
+) -> None:
+    """Table 3: model size, per-policy time of both evaluators, search time and search space per size."""
+    from parley_core.experiment.scalability import write_table3
+
+    study = case_study(case)
+    try:
+        values = [int(v) for v in sizes.split(",")]
+    except ValueError:
+        raise OptionError(f"malformed --sizes {sizes!r}; give integers such as 5,10,20") from None
+    with progress_bars() as progress:
+        task = progress.add_task("scalability", total=len(values))
+        table = write_table3(
+            study, values, option, set_ or [], storm_policies=storm_policies, out=out,
+            progress=lambda n: progress.advance(task, n),
+        )
+    Console().print(table)

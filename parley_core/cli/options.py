@@ -1,0 +1,68 @@
+"""The command-line option types shared by several commands; search defaults come from
+:class:`~parley_core.search.SearchSettings`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from parley_core.search import default
+
+SetOption = Annotated[
+    list[str] | None,
+    typer.Option("--set", "-s", metavar="KEY=VALUE", help="A case-study option (repeatable); see `parley options CASE`."),
+]
+WorkersOption = Annotated[
+    int | None, typer.Option("--workers", "-j", min=1, help="Worker processes for Storm (default: one per core).")
+]
+EvaluatorOption = Annotated[
+    str,
+    typer.Option(
+        "--evaluator",
+        help="quotient: one MDP for all policies, fast; storm: build and check each policy (the reference).",
+    ),
+]
+ConstraintOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--constraint",
+        metavar="NAME>=BOUND",
+        help="A requirement the policies must meet, e.g. success>=0.8 (repeatable).",
+    ),
+]
+DecisionOption = Annotated[
+    list[str],
+    typer.Option(
+        "--decision",
+        metavar="NAME=LOW..HIGH[:KIND]",
+        help="A constant that sets when a service runs, and its values (repeatable).",
+    ),
+]
+ObserveOption = Annotated[list[str], typer.Option("--observe", metavar="VAR,...", help="Variables the URC may read.")]
+JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON document to stdout and nothing else there.")]
+ForceOption = Annotated[bool, typer.Option(help="Replace the files of an existing --out directory.")]
+CaseArgument = Annotated[str, typer.Argument(help="Case study name (see `parley list`).")]
+
+SEED = default("seed")
+POPULATION = default("population")
+SeedOption = Annotated[int, typer.Option(help="Seed of the search; the same seed gives the same front.")]
+PopulationOption = Annotated[int, typer.Option(min=2, help="NSGA-II population size.")]
+GenerationsOption = Annotated[
+    int | None,
+    typer.Option(
+        min=1,
+        show_default=False,
+        help=f"NSGA-II generations (default: {default('generations')}, "
+        "or no limit when --max-evaluations or --time-limit is given).",
+    ),
+]
+MaxEvaluationsOption = Annotated[
+    int | None,
+    typer.Option("--max-evaluations", min=1, help="Stop after this many policies (the baselines included)."),
+]
+TimeLimitOption = Annotated[
+    float | None, typer.Option("--time-limit", min=0.001, help="Stop the search after this many seconds.")
+]
+OutOption = Annotated[Path | None, typer.Option(help="Run directory (default: runs/NAME-TIMESTAMP).")]

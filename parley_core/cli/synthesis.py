@@ -1,0 +1,197 @@
+"""Commands that synthesize: run (a case study), synthesize (a user's model), augment."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+
+from parley_core.cli.app import app
+from parley_core.cli.common import prepare_case, search_settings, user_errors
+from parley_core.cli.console import RichReporter, fmt, front_table, stderr
+from parley_core.cli.options import (
+    POPULATION,
+    SEED,
+    CaseArgument,
+    ConstraintOption,
+    DecisionOption,
+    EvaluatorOption,
+    ForceOption,
+    GenerationsOption,
+    MaxEvaluationsOption,
+    ObserveOption,
+    OutOption,
+    PopulationOption,
+    SeedOption,
+    SetOption,
+    TimeLimitOption,
+    WorkersOption,
+)
+from parley_core.errors import OptionError
+from parley_core.evaluate import EvaluatorKind
+from parley_core.prism.writer import FORMATS
+
+
+@app.command("run")
+@user_errors
+def run_command(
+    case: CaseArgument,
+    set_: SetOption = None,
+    seed: SeedOption = SEED,
+    population: PopulationOption = POPULATION,
+    generations: GenerationsOption = None,
+    max_evaluations: MaxEvaluationsOption = None,
+    time_limit: TimeLimitOption = None,
+    out: OutOption = None,
+    force: ForceOption = False,
+    evaluator: EvaluatorOption = EvaluatorKind.QUOTIENT.value,
+    constraint: ConstraintOption = None,
+    workers: WorkersOption = None,
+) -> None:
+    """Synthesize a URC: search for Pareto-optimal policies, verify them with Storm, write a run directory."""
+    settings = search_settings(
+        population=population,
+        generations=generations,
+        max_evaluations=max_evaluations,
+        time_limit=time_limit,
+        seed=seed,
+        constraint=constraint,
+    )
+    out = out or Path("runs") / f"{case}-{time.strftime('%Y%m%d-%H%M%S')}"
+    _synthesize(lambda reporter: prepare_case(case, set_, reporter), settings, out, force, evaluator, workers)
+
+
+@app.command("synthesize")
+@user_errors
+def synthesize_command(
+    model: Annotated[Path, typer.Argument(help="A PRISM DTMC.")],
+    props: Annotated[
+        Path,
+        typer.Option(help="PCTL properties, each after a '// name: NAME, max|min' comment (or use --maximize/--minimize)."),
+    ],
+    decision: DecisionOption,
+    observe: ObserveOption,
+    maximize: Annotated[list[str] | None, typer.Option("--maximize", metavar="NAME", help="Maximize this objective.")] = None,
+    minimize: Annotated[list[str] | None, typer.Option("--minimize", metavar="NAME", help="Minimize this objective.")] = None,
+    constraint: ConstraintOption = None,
+    seed: SeedOption = SEED,
+    population: PopulationOption = POPULATION,
+    generations: GenerationsOption = None,
+    max_evaluations: MaxEvaluationsOption = None,
+    time_limit: TimeLimitOption = None,
+    out: OutOption = None,
+    force: ForceOption = False,
+    evaluator: EvaluatorOption = EvaluatorKind.QUOTIENT.value,
+    workers: WorkersOption = None,
+) -> None:
+    """Synthesize a URC for your own PRISM model: the same pipeline and run directory as `parley run`."""
+    from parley_core.pipeline import prepare
+    from parley_core.usermodel import FileOptions, case_study_for, system_from_file
+
+    def prepare_with(reporter):
+        reporter.stage("read model")
+        system = system_from_file(model, decision, observe, props, maximize or [], minimize or [])
+        return prepare(case_study_for(system, model), FileOptions(model=str(model)), reporter)
+
+    settings = search_settings(
+        population=population,
+        generations=generations,
+        max_evaluations=max_evaluations,
+        time_limit=time_limit,
+        seed=seed,
+        constraint=constraint,
+    )
+    out = out or Path("runs") / f"{model.stem}-{time.strftime('%Y%m%d-%H%M%S')}"
+    _synthesize(prepare_with, settings, out, force, evaluator, workers)
+
+
+def _synthesize(prepare_with, settings, out: Path, force: bool, evaluator: str, workers: int | None) -> None:
+    """Prepare, search, verify, write and print a run (shared by `run` and `synthesize`)."""
+    from parley_core.pipeline import run
+    from parley_core.report import PLOT_ERROR, check_output, summary, write_run
+    from parley_core.verify import Verified
+
+    kind = EvaluatorKind.of(evaluator)
+    console = Console()
+    check_output(out, force)
+    with RichReporter(stderr()) as reporter:
+        prepared = prepare_with(reporter)
+        result = run(prepared, settings, evaluator=kind, workers=workers, reporter=reporter)
+        reporter.stage("write report")
+        written = write_run(result, out, force=force)
+    if out / PLOT_ERROR in written:
+        console.print(
+            f"[yellow]warning:[/] the policy plot failed; the run is complete without it ({out / PLOT_ERROR} says why)"
+        )
+    info = summary(result)
+    family = result.family
+    constants = [s.constant for s in family.services]
+    console.print(front_table(f"Pareto front: {len(result.front)} policies, values checked by Storm", result.front))
+    console.print(
+        front_table("Baseline", result.baseline, {c: [b.values[c] for b in family.baselines] for c in constants})
+    )
+    gain = info["hypervolume_gain_percent"]
+    reference = ", ".join(f"{o.name}={fmt(r)}" for o, r in zip(family.objectives, result.reference))
+    console.print(
+        f"hypervolume: front {fmt(info['front']['hypervolume'])}, baseline {fmt(info['baseline']['hypervolume'])}"
+        + (f" (gain {gain:+.1f}%)" if gain is not None else "")
+        + f"; reference point {reference}"
+    )
+    search = result.search
+    console.print(
+        f"{search.evaluations} policies evaluated in {search.generations} generations "
+        f"({result.timings.get('search', 0):.1f} s, stopped by {search.stopped_by.value}); "
+        f"selected {info['selected']['policy']} (knee)"
+    )
+    verification = result.verification
+    if verification.by is Verified.STORM_RECHECK:
+        console.print(
+            f"every front policy re-checked by Storm: largest difference from the {kind.value} evaluator "
+            f"{verification.max_difference:.1e}"
+        )
+    console.print(f"wrote {out}/")
+    if search.interrupted:
+        raise typer.Exit(130)
+
+
+@app.command("augment")
+@user_errors
+def augment_command(
+    model: Annotated[Path, typer.Argument(help="A PRISM DTMC.")],
+    decision: DecisionOption,
+    observe: ObserveOption,
+    out: Annotated[Path | None, typer.Option(help="Write the parametric model here (default: stdout).")] = None,
+    format_: Annotated[
+        str, typer.Option("--format", help="prism (undefined const int), evochecker (evolve int) or paynt (hole).")
+    ] = "prism",
+    force: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
+) -> None:
+    """Write the parametric model: one decision constant per service and reachable observation valuation."""
+    from parley_core.augment import export
+    from parley_core.pipeline import make_family
+    from parley_core.usermodel import system_from_file
+
+    if format_ not in FORMATS:
+        raise OptionError(f"unknown --format {format_!r}; valid: {', '.join(FORMATS)}")
+    if out is not None and out.exists() and not force:
+        raise OptionError(f"output {out} exists; choose another --out or add --force")
+    system = system_from_file(model, decision, observe)
+    family = make_family(system, prune=True)
+    text = export(family, format_)
+    total = len(family.valuations) + len(family.left_out)
+    print(
+        f"{len(family.valuations)} of {total} observation valuations of ({', '.join(system.observation)}) "
+        f"consult a service in some reachable state; {len(family.left_out)} left out; "
+        f"{len(family.decisions)} decision constants",
+        file=sys.stderr,
+    )
+    if out is None:
+        sys.stdout.write(text)
+    else:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text)
+        print(f"wrote {out}", file=sys.stderr)

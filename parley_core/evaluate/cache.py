@@ -1,0 +1,65 @@
+"""A memo in front of an evaluator: every policy evaluated once, in the order first seen.
+
+The search's archive: the front is taken from everything evaluated, not only from the
+last population, and no policy is evaluated twice.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from parley_core.evaluate import Evaluator
+from parley_core.progress import Progress
+
+
+class CachingEvaluator:
+    """Every policy evaluated so far, in order, with its values; evaluates only what is new.
+
+    It is an :class:`~parley_core.evaluate.Evaluator` itself; ``close`` closes the one it wraps.
+    """
+
+    def __init__(self, evaluator: Evaluator, n_decisions: int, n_objectives: int) -> None:
+        self.evaluator = evaluator
+        self.name = evaluator.name
+        self._index: dict[bytes, int] = {}
+        self._policies: list[np.ndarray] = []
+        self._values: list[np.ndarray] = []
+        self.n_decisions = n_decisions
+        self.n_objectives = n_objectives
+
+    def __len__(self) -> int:
+        return len(self._policies)
+
+    @property
+    def policies(self) -> np.ndarray:
+        return np.array(self._policies, dtype=np.int64).reshape(-1, self.n_decisions)
+
+    @property
+    def values(self) -> np.ndarray:
+        return np.array(self._values, dtype=float).reshape(-1, self.n_objectives)
+
+    def evaluate(self, policies: np.ndarray, progress: Progress | None = None, budget: int | None = None) -> np.ndarray:
+        """Values of ``policies``; at most ``budget`` new ones are evaluated (first come,
+        first served), and the rows of the others are NaN."""
+        policies = np.asarray(policies, dtype=np.int64).reshape(-1, self.n_decisions)
+        keys = [row.tobytes() for row in policies]
+        new: dict[bytes, np.ndarray] = {}
+        for key, row in zip(keys, policies):
+            if key not in self._index and key not in new:
+                if budget is not None and len(new) >= budget:
+                    continue
+                new[key] = row
+        if new:
+            rows = np.array(list(new.values()))
+            values = self.evaluator.evaluate(rows, progress=progress)
+            for key, row, value in zip(new, rows, values):
+                self._index[key] = len(self._policies)
+                self._policies.append(row.copy())
+                self._values.append(np.asarray(value, dtype=float))
+        missing = np.full(self.n_objectives, np.nan)
+        return np.array([self._values[self._index[k]] if k in self._index else missing for k in keys]).reshape(
+            -1, self.n_objectives
+        )
+
+    def close(self) -> None:
+        self.evaluator.close()

@@ -1,0 +1,32 @@
+"""Worker processes: how many, and a pool that starts them fresh (spawn, not fork).
+
+Workers are spawned rather than forked so that no Storm or numba state of the parent is
+shared. A worker's per-process state (the quotient solver, Storm's parsed program) is set
+by the pool's initializer or filled on first use; that module-level cache, one per worker
+process, is the one sanctioned exception to "no module state" (docs/architecture.md).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+
+def default_workers(workers: int | None = None) -> int:
+    """``workers`` if given, else one per core; at least 1."""
+    return max(1, workers if workers is not None else (os.cpu_count() or 1))
+
+
+def spawn_pool(
+    workers: int, initializer: Callable[..., Any] | None = None, initargs: tuple[Any, ...] = ()
+) -> ProcessPoolExecutor:
+    """A process pool of ``workers`` spawned processes."""
+    return ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=initializer,
+        initargs=initargs,
+    )

@@ -1,0 +1,101 @@
+"""The test kit for parley and its plugins: helpers that need no core internals, and the
+conformance suite.
+
+- :func:`storm_values` checks PRISM text with plain stormpy calls (nothing of parley's
+  evaluators), so a test can compare parley's values with Storm's on the same text.
+- :func:`case_study`, :func:`family` and :func:`values` build a case study's family and
+  evaluate policies on it, the way a run does.
+- :class:`~parley_core.testing.suite.ConformanceSuite` (import it from
+  ``parley_core.testing.suite``, which needs pytest) runs the conformance checks of
+  :mod:`parley_core.testing.conformance` on case studies; parley's pytest plugin adds
+  ``pytest --parley-case NAME`` to run them without a test file. See docs/plugins.md.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterable, Mapping, Sequence
+
+import numpy as np
+
+from parley_core.casestudy import CaseStudy
+from parley_core.model import Family, Policy, SystemModel
+
+
+def storm_values(
+    prism_text: str, formulas: Sequence[str], constants: Mapping[str, int] | None = None, exact: bool = False
+) -> list[float]:
+    """Each formula's value at the initial state of the DTMC ``prism_text`` with the given
+    undefined constants defined. ``exact`` builds and checks with rational numbers (for
+    nested thresholds such as ``P<1`` that rounding must not decide)."""
+    import stormpy
+
+    from parley_core.prism.program import quiet_storm
+
+    quiet_storm()
+    fd, path = tempfile.mkstemp(suffix=".prism")
+    with os.fdopen(fd, "w") as handle:
+        handle.write(prism_text)
+    try:
+        program = stormpy.parse_prism_program(path)
+    finally:
+        os.unlink(path)
+    if constants:
+        manager = program.expression_manager
+        by_name = {c.name: c.expression_variable for c in program.constants}
+        program = program.define_undefined_constants({by_name[k]: manager.integer(v) for k, v in constants.items()})
+    properties = stormpy.parse_properties(";".join(formulas), program)
+    if exact:
+        model = stormpy.build_model[stormpy.Rational](program, properties)
+    else:
+        model = stormpy.build_model(program, properties)
+    state = model.initial_states[0]
+    return [float(stormpy.model_checking(model, p).get_value(state)) for p in properties]
+
+
+def case_study(name: str) -> CaseStudy:
+    """An installed case study by name (built-in or from an entry point)."""
+    from parley_core.plugins import load_registry
+
+    return load_registry().get(name)
+
+
+def family(
+    source: CaseStudy | str | SystemModel, assignments: Iterable[str] = (), *, prune: bool | None = None
+) -> Family:
+    """The family a run would search: a case study (or its name) built with ``--set``-style
+    ``assignments`` over its defaults, or a system model, augmented. ``prune`` defaults to
+    the case study's own setting (False for a system model)."""
+    from parley_core.pipeline import make_family
+
+    if isinstance(source, SystemModel):
+        return make_family(source, prune=bool(prune))
+    case = case_study(source) if isinstance(source, str) else source
+    system = case.build(case.options(list(assignments)))
+    return make_family(system, prune=case.prune if prune is None else prune)
+
+
+def values(
+    family: Family, policies: Policy | Sequence[Policy] | np.ndarray, evaluator: str = "storm"
+) -> np.ndarray:
+    """The objective values [policies, objectives] of policies of ``family``, by the Storm
+    evaluator (the reference; default) or the quotient evaluator, in this process."""
+    from parley_core.evaluate import make_evaluator
+
+    if isinstance(policies, Policy):
+        policies = [policies]
+    if isinstance(policies, np.ndarray):
+        rows = np.asarray(policies, dtype=np.int64).reshape(-1, len(family.decisions))
+    else:
+        for policy in policies:
+            family.check(policy)
+        rows = np.array([p.values for p in policies], dtype=np.int64).reshape(-1, len(family.decisions))
+    engine = make_evaluator(family, evaluator, workers=1)
+    try:
+        return engine.evaluate(rows)
+    finally:
+        engine.close()
+
+
+__all__ = ["case_study", "family", "storm_values", "values"]
