@@ -46,8 +46,13 @@ def main() -> int:
             difference = float(np.abs(quotient.evaluate(policies) - storm.evaluate(policies)).max())
         worst = max(worst, difference)
         total += len(random)
-        print(f"{' '.join(options)}: {len(baselines)} baselines + {len(random)} random policies, max difference {difference:.1e}", flush=True)
-    print(f"all: {total} random policies and the baselines of {len(instances)} maps, max difference {worst:.1e} ({time.time() - start:.0f} s)")
+        print(
+            f"{' '.join(options)}: {len(baselines)} baselines + {len(random)} random policies, max difference {difference:.1e}",
+            flush=True,
+        )
+    print(
+        f"all: {total} random policies and the baselines of {len(instances)} maps, max difference {worst:.1e} ({time.time() - start:.0f} s)"
+    )
     return 0 if worst <= 1e-6 else 1
 
 

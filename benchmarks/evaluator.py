@@ -38,7 +38,8 @@ def main() -> int:
         assignments = [f"map={PUBLISHED_MAP}"] if size == 10 and PUBLISHED_MAP.is_file() else [f"size={size}", "seed=0"]
         start = time.perf_counter()
         row = measure_isolated(
-            "robot_grid", assignments,
+            "robot_grid",
+            assignments,
             storm_policies=args.storm_policies if size <= 20 else max(3, args.storm_policies // 4),
             quotient_policies=args.quotient_policies if size <= 20 else args.quotient_policies // 4,
             workers=args.workers,

@@ -81,8 +81,10 @@ def spread(
     points = _as_min(values, directions)
     if len(points) < 2:
         return 1.0
-    low, high = (points.min(axis=0), points.max(axis=0)) if bounds is None else (
-        _as_min(bounds[0], directions)[0], _as_min(bounds[1], directions)[0]
+    low, high = (
+        (points.min(axis=0), points.max(axis=0))
+        if bounds is None
+        else (_as_min(bounds[0], directions)[0], _as_min(bounds[1], directions)[0])
     )
     low, high = np.minimum(low, high), np.maximum(low, high)
     scale = np.where(high - low > 0, high - low, 1.0)

@@ -115,7 +115,9 @@ class Service:
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Service:
         low, high = data["range"]
-        return cls(name=data["name"], constant=data["constant"], kind=DecisionKind(data["kind"]), low=int(low), high=int(high))
+        return cls(
+            name=data["name"], constant=data["constant"], kind=DecisionKind(data["kind"]), low=int(low), high=int(high)
+        )
 
 
 @frozen(kw_only=True)
@@ -290,7 +292,9 @@ class Valued:
 
     objectives: tuple[Objective, ...] = field(converter=tuple)
     policies: tuple[Policy, ...] = field(converter=tuple)
-    values: tuple[tuple[float, ...], ...] = field(converter=lambda rows: tuple(tuple(float(v) for v in r) for r in rows))
+    values: tuple[tuple[float, ...], ...] = field(
+        converter=lambda rows: tuple(tuple(float(v) for v in r) for r in rows)
+    )
 
     def __attrs_post_init__(self) -> None:
         if len(self.policies) != len(self.values):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import types
 import typing
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -53,10 +53,7 @@ def parse_assignments(assignments: Iterable[str]) -> dict[str, str]:
 
 def options_as_dict(options: Any) -> dict[str, Any]:
     """Options as JSON-friendly values (paths as strings)."""
-    return {
-        k: (str(v) if isinstance(v, Path) else v)
-        for k, v in attrs.asdict(options, recurse=False).items()
-    }
+    return {k: (str(v) if isinstance(v, Path) else v) for k, v in attrs.asdict(options, recurse=False).items()}
 
 
 def convert(case: str, key: str, text: str, annotation: Any) -> Any:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib
 import pkgutil
 from collections.abc import Iterable, Mapping
+from importlib import metadata
 
 import pluggy
 from attrs import field, frozen
@@ -24,7 +25,10 @@ def builtin_plugins() -> list[str]:
 
 
 def plugin_manager(builtins: Iterable[str] | None = None, entry_points: bool = True) -> pluggy.PluginManager:
-    """A fresh plugin manager with the built-in plugins and, unless disabled, installed ones."""
+    """A fresh plugin manager with the built-in plugins and, unless disabled, installed ones.
+
+    A plugin implementing a hook that parley does not specify (a misspelt name, say) is an
+    error, as in pytest (``check_pending``)."""
     pm = pluggy.PluginManager(hookspecs.PROJECT)
     pm.add_hookspecs(hookspecs)
     for module_name in builtin_plugins() if builtins is None else builtins:
@@ -37,7 +41,38 @@ def plugin_manager(builtins: Iterable[str] | None = None, entry_points: bool = T
                 f"an installed parley plugin failed to load ({type(exc).__name__}: {exc}); "
                 "fix or uninstall it (pip uninstall)"
             ) from exc
+    check_hooks(pm)
     return pm
+
+
+def check_hooks(pm: pluggy.PluginManager) -> None:
+    """Refuse hook implementations that match no hook specification."""
+    try:
+        pm.check_pending()
+    except pluggy.PluginValidationError as exc:
+        name = pm.get_name(exc.plugin) or repr(exc.plugin)
+        known = ", ".join(sorted(n for n in dir(hookspecs) if n.startswith(f"{hookspecs.PROJECT}_")))
+        raise PluginError(
+            f"plugin {name} implements a hook parley does not know ({exc}); the hooks are: {known}"
+        ) from None
+
+
+def versions(pm: pluggy.PluginManager) -> dict[str, str]:
+    """Each registered plugin's distribution and version (``parley-thermostat 0.1.0``): of
+    its entry point's distribution, or parley's own for the built-ins."""
+    found = {
+        pm.get_name(plugin) or repr(plugin): f"{dist.project_name} {dist.version}"
+        for plugin, dist in pm.list_plugin_distinfo()
+    }
+    try:
+        own = f"parley {metadata.version('parley')}"
+    except metadata.PackageNotFoundError:
+        own = "parley (not installed)"
+    for plugin in pm.get_plugins():
+        name = pm.get_name(plugin) or repr(plugin)
+        if name not in found and name.startswith(f"{BUILTIN_PACKAGE}."):
+            found[name] = own
+    return found
 
 
 @frozen(kw_only=True)
@@ -46,6 +81,15 @@ class Registry:
 
     case_studies: Mapping[str, CaseStudy] = field(converter=dict)
     providers: Mapping[str, str] = field(converter=dict)
+    """Case study -> the plugin (module or entry point name) that provided it."""
+    distributions: Mapping[str, str] = field(factory=dict, converter=dict)
+    """Plugin -> its distribution and version, where known."""
+
+    def provider(self, name: str) -> str:
+        """The plugin of a case study with its distribution: ``parley_thermostat (parley-thermostat 0.1.0)``."""
+        plugin = self.providers[name]
+        distribution = self.distributions.get(plugin)
+        return f"{plugin} ({distribution})" if distribution else plugin
 
     @property
     def names(self) -> list[str]:
@@ -56,9 +100,7 @@ class Registry:
             return self.case_studies[name]
         except KeyError:
             valid = ", ".join(self.names) or "none are registered"
-            raise UnknownCaseStudyError(
-                f"unknown case study {name!r}; valid: {valid} (see `parley list`)"
-            ) from None
+            raise UnknownCaseStudyError(f"unknown case study {name!r}; valid: {valid} (see `parley list`)") from None
 
 
 def load_registry(pm: pluggy.PluginManager | None = None) -> Registry:
@@ -66,12 +108,16 @@ def load_registry(pm: pluggy.PluginManager | None = None) -> Registry:
     pm = pm if pm is not None else plugin_manager()
     case_studies: dict[str, CaseStudy] = {}
     providers: dict[str, str] = {}
-    for impl in pm.hook.parley_case_studies.get_hookimpls():  # registration order
+    # Each implementation is called on its own (not through the hook) so that every case
+    # study is attributed to the plugin that provided it; registration order.
+    for impl in pm.hook.parley_case_studies.get_hookimpls():
         provider = pm.get_name(impl.plugin) or repr(impl.plugin)
         try:
             provided = impl.function()
         except Exception as exc:
-            raise PluginError(f"plugin {provider} failed to list its case studies ({type(exc).__name__}: {exc})") from exc
+            raise PluginError(
+                f"plugin {provider} failed to list its case studies ({type(exc).__name__}: {exc})"
+            ) from exc
         for case in provided or ():
             if not isinstance(case, CaseStudy):
                 raise PluginError(f"plugin {provider} returned {type(case).__name__}, expected CaseStudy")
@@ -82,4 +128,4 @@ def load_registry(pm: pluggy.PluginManager | None = None) -> Registry:
                 )
             case_studies[case.name] = case
             providers[case.name] = provider
-    return Registry(case_studies=case_studies, providers=providers)
+    return Registry(case_studies=case_studies, providers=providers, distributions=versions(pm))

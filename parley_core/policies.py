@@ -39,7 +39,9 @@ def read_policies(path: Path, family: Family) -> list[Policy]:
     header = [cell.strip() for cell in rows[0]]
     body = rows[1:]
     if not header or header[0] != "policy":
-        raise PolicyError(f"policies file {path}: the first column must be 'policy', found {header[0] if header else 'nothing'!r}")
+        raise PolicyError(
+            f"policies file {path}: the first column must be 'policy', found {header[0] if header else 'nothing'!r}"
+        )
     observation = list(family.observation)
     constants = [s.constant for s in family.services]
     if header[1:] == observation + constants:
@@ -81,7 +83,9 @@ def _read_long(path: Path, body: list[list[str]], family: Family) -> list[Policy
         values = [_integer(path, line, s.constant, row[1 + len(observation) + i]) for i, s in enumerate(services)]
         table = tables.setdefault(name, {})
         if valuation in table:
-            raise PolicyError(f"policies file {path}, line {line}: policy {name!r} gives {_show(observation, valuation)} twice")
+            raise PolicyError(
+                f"policies file {path}, line {line}: policy {name!r} gives {_show(observation, valuation)} twice"
+            )
         table[valuation] = values
     known = set(family.valuations)
     ignored = set(family.left_out)  # valuations at which no service is ever consulted

@@ -129,7 +129,10 @@ def summary(result: RunResult) -> dict[str, Any]:
             "policies": result.verification.policies,
             "max_difference": result.verification.max_difference,
         },
-        "selected": {"policy": result.front.policies[result.selected].name, "rule": "knee (closest to the ideal point, normalised)"},
+        "selected": {
+            "policy": result.front.policies[result.selected].name,
+            "rule": "knee (closest to the ideal point, normalised)",
+        },
         "timings_seconds": timings,
         "versions": versions(),
     }
@@ -142,12 +145,32 @@ def plot_front(result: RunResult, path: Path) -> None:
         i, j = (1, 0) if objectives[0].direction is Direction.MAX else (0, 1)
         front = np.array(result.front.values)
         base = np.array(result.baseline.values)
-        ax.scatter(front[:, i], front[:, j], s=22, facecolors="none", edgecolors="tab:blue", label=f"parley front ({len(front)})")
+        ax.scatter(
+            front[:, i],
+            front[:, j],
+            s=22,
+            facecolors="none",
+            edgecolors="tab:blue",
+            label=f"parley front ({len(front)})",
+        )
         ax.scatter(base[:, i], base[:, j], marker="x", color="tab:red", s=36, label=f"baseline ({len(base)})")
         chosen = front[result.selected]
-        ax.scatter([chosen[i]], [chosen[j]], s=90, color="tab:blue", label=f"selected {result.front.policies[result.selected].name} (knee)")
+        ax.scatter(
+            [chosen[i]],
+            [chosen[j]],
+            s=90,
+            color="tab:blue",
+            label=f"selected {result.front.policies[result.selected].name} (knee)",
+        )
         for policy, row in zip(result.baseline.policies, base):
-            ax.annotate(policy.name.split("-")[-1], (row[i], row[j]), fontsize=7, color="tab:red", xytext=(3, -9), textcoords="offset points")
+            ax.annotate(
+                policy.name.split("-")[-1],
+                (row[i], row[j]),
+                fontsize=7,
+                color="tab:red",
+                xytext=(3, -9),
+                textcoords="offset points",
+            )
         ax.set_xlabel(f"{objectives[i].name} ({objectives[i].direction.value})")
         ax.set_ylabel(f"{objectives[j].name} ({objectives[j].direction.value})")
     ax.set_title(f"{result.prepared.case.name}: front vs baseline", fontsize=11)

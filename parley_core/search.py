@@ -21,7 +21,7 @@ import numpy as np
 from attrs import field, frozen, validators
 from pymoo.algorithms.moo.nsga2 import NSGA2
 from pymoo.core.problem import Problem
-from pymoo.core.termination import Termination, TerminateIfAny
+from pymoo.core.termination import TerminateIfAny, Termination
 from pymoo.operators.crossover.sbx import SBX
 from pymoo.operators.mutation.pm import PM
 from pymoo.operators.repair.rounding import RoundingRepair
@@ -177,7 +177,9 @@ def search(
     evaluated again, count towards ``max_evaluations`` and belong to the result.
     ``progress`` is called once per generation.
     """
-    archive = archive if archive is not None else CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
+    archive = (
+        archive if archive is not None else CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
+    )
     problem = PolicyProblem(family, archive, constraints=settings.constraints, budget=settings.max_evaluations)
     algorithm = NSGA2(
         pop_size=settings.population,

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 import stormpy
@@ -28,6 +29,7 @@ from parley_core.evaluate.storm import StormChecker, StormTask
 from parley_core.model import Family
 from parley_core.prism import program as prism
 from parley_core.prism.properties import Shape, shape
+from parley_core.urc import URC
 
 Z99 = 2.5758293035489004
 
@@ -48,6 +50,16 @@ class Estimate:
         return bool(self.low <= self.checked <= self.high)
 
 
+def family_for_controller(model: Path, controller: URC, props: Path) -> Family:
+    """A user's model augmented with a controller's services and observation (as `parley
+    synthesize` augmented it), for simulating the controller on it."""
+    from parley_core.pipeline import make_family
+    from parley_core.usermodel import system_from_file
+
+    system = system_from_file(model, controller.services, [",".join(controller.observation)], props)
+    return make_family(system, prune=True)
+
+
 def _wilson(successes: int, n: int) -> tuple[float, float]:
     p = successes / n
     denominator = 1 + Z99**2 / n
@@ -56,7 +68,9 @@ def _wilson(successes: int, n: int) -> tuple[float, float]:
     return centre - half, centre + half
 
 
-def simulate(family: Family, values: Sequence[int], episodes: int, seed: int, max_steps: int = 10_000) -> list[Estimate | str]:
+def simulate(
+    family: Family, values: Sequence[int], episodes: int, seed: int, max_steps: int = 10_000
+) -> list[Estimate | str]:
     """Estimates per objective (or a sentence saying why one cannot be simulated)."""
     program = prism.parse_program(family.prism, origin="the augmented model")
     instance = prism.define_constants(program, dict(zip(family.names, values)))
@@ -76,7 +90,9 @@ def simulate(family: Family, values: Sequence[int], episodes: int, seed: int, ma
                 plans.append(f"{objective.name}: only F and F<=k probabilities can be simulated")
                 continue
             mask = np.zeros(model.nr_states, dtype=bool)
-            mask[np.asarray(stormpy.model_checking(model, found.right).get_truth_values_vector(), dtype=np.int64)] = True
+            mask[np.asarray(stormpy.model_checking(model, found.right).get_truth_values_vector(), dtype=np.int64)] = (
+                True
+            )
             plans.append(("reach", objective.name, mask, found.steps, value))
         elif found.kind is Shape.CUMULATIVE:
             rewards = list(model.reward_models)
@@ -137,10 +153,31 @@ def simulate(family: Family, values: Sequence[int], episodes: int, seed: int, ma
         i = active.index(plan)
         if plan[0] == "reach":
             low, high = _wilson(int(hits[i]), episodes)
-            results.append(Estimate(objective=plan[1], kind="probability", mean=hits[i] / episodes, low=low, high=high, checked=plan[4], episodes=episodes, cut=int(cut[i])))
+            results.append(
+                Estimate(
+                    objective=plan[1],
+                    kind="probability",
+                    mean=hits[i] / episodes,
+                    low=low,
+                    high=high,
+                    checked=plan[4],
+                    episodes=episodes,
+                    cut=int(cut[i]),
+                )
+            )
         else:
             mean = sums[i] / episodes
             deviation = math.sqrt(max(squares[i] / episodes - mean * mean, 0.0) * episodes / max(episodes - 1, 1))
             half = Z99 * deviation / math.sqrt(episodes)
-            results.append(Estimate(objective=plan[1], kind="mean reward", mean=mean, low=mean - half, high=mean + half, checked=plan[4], episodes=episodes))
+            results.append(
+                Estimate(
+                    objective=plan[1],
+                    kind="mean reward",
+                    mean=mean,
+                    low=mean - half,
+                    high=mean + half,
+                    checked=plan[4],
+                    episodes=episodes,
+                )
+            )
     return results

@@ -66,7 +66,9 @@ class URC:
         else:
             values = list(observation)
             if len(values) != len(self.observation):
-                raise ObservationError(f"observation must give {len(self.observation)} values ({', '.join(self.observation)})")
+                raise ObservationError(
+                    f"observation must give {len(self.observation)} values ({', '.join(self.observation)})"
+                )
         result = []
         for name, value in zip(self.observation, values):
             if isinstance(value, bool):
@@ -98,9 +100,13 @@ class URC:
         try:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
-            raise PolicyError(f"controller file {path} is not JSON ({exc.msg}, line {exc.lineno}); give a file written by `parley select`") from None
+            raise PolicyError(
+                f"controller file {path} is not JSON ({exc.msg}, line {exc.lineno}); give a file written by `parley select`"
+            ) from None
         if not isinstance(data, dict) or data.get("format") != FORMAT:
-            raise PolicyError(f"controller file {path} is not a parley controller ({FORMAT}); give a file written by `parley select`")
+            raise PolicyError(
+                f"controller file {path} is not a parley controller ({FORMAT}); give a file written by `parley select`"
+            )
         try:
             observation = [str(n) for n in data["observation"]]
             services = [Service.from_json(s) for s in data["services"]]

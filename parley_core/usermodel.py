@@ -26,7 +26,6 @@ from parley_core.files import read_text
 from parley_core.model import Baseline, Decision, DecisionKind, Direction, Family, Objective, Service, SystemModel
 from parley_core.prism import program as prism
 from parley_core.prism import rewrite
-from parley_core.urc import URC
 
 
 def parse_decision(text: str) -> Service:
@@ -132,13 +131,17 @@ def system_from_file(
     for constant in program.constants:  # Storm crashes (SIGFPE) simplifying `const int k = 1/0;`
         if constant.defined and constant.type.is_integer and not constant.definition.get_variables():
             if prism.fixed_int(constant.definition) is None:
-                raise ModelError(f"constant {constant.name} = {constant.definition} is not a finite integer; fix its definition")
+                raise ModelError(
+                    f"constant {constant.name} = {constant.definition} is not a finite integer; fix its definition"
+                )
     _check_storm_survives(path, lambda: program, {s.constant: s.low for s in services})
     baselines = []
     for service in services:
         if service.constant not in constants:
             names = ", ".join(sorted(constants)) or "none"
-            raise ModelError(f"--decision {service.constant}: the model declares no constant of that name; constants: {names}")
+            raise ModelError(
+                f"--decision {service.constant}: the model declares no constant of that name; constants: {names}"
+            )
         constant = constants[service.constant]
         if not constant.type.is_integer:
             raise ModelError(f"--decision {service.constant}: the constant is not an int; decisions are integers")
@@ -230,7 +233,8 @@ def family_of_run(run) -> Family:
     the quotient cannot be built from it."""
     services = {s.constant: s for s in run.services}
     decisions = tuple(
-        Decision(name=name, service=services[constant], valuation=valuation) for name, constant, valuation in run.decisions
+        Decision(name=name, service=services[constant], valuation=valuation)
+        for name, constant, valuation in run.decisions
     )
     return Family(
         name=_identifier(run.summary.get("case_study", "run")),
@@ -242,12 +246,3 @@ def family_of_run(run) -> Family:
         valuations=tuple(dict.fromkeys(d.valuation for d in decisions)),
         left_out=run.left_out,
     )
-
-
-def family_for_simulation(target: Path, controller: URC, props: Path) -> Family:
-    """A user's model augmented with a controller's services and observation (as `parley
-    synthesize` augmented it), for simulating the controller on it."""
-    from parley_core.pipeline import make_family
-
-    system = system_from_file(target, controller.services, [",".join(controller.observation)], props)
-    return make_family(system, prune=True)

@@ -39,7 +39,12 @@ class Verification:
     seconds: float
 
     def to_json(self) -> dict[str, object]:
-        return {"by": self.by.value, "policies": self.policies, "max_difference": self.max_difference, "seconds": self.seconds}
+        return {
+            "by": self.by.value,
+            "policies": self.policies,
+            "max_difference": self.max_difference,
+            "seconds": self.seconds,
+        }
 
     @classmethod
     def from_json(cls, data: dict) -> Verification:
@@ -77,6 +82,9 @@ def check_with_storm(
         checked = storm.evaluate(policies, progress=reporter.advance)
     difference = float(np.abs(checked - values).max()) if len(values) else 0.0
     verification = Verification(
-        by=Verified.STORM_RECHECK, policies=len(policies), max_difference=difference, seconds=time.perf_counter() - start
+        by=Verified.STORM_RECHECK,
+        policies=len(policies),
+        max_difference=difference,
+        seconds=time.perf_counter() - start,
     )
     return verification, checked

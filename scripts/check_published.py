@@ -31,7 +31,6 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import stormpy
-from stormpy.developer.storage import Expression
 
 from parley_core.prism import program as prism
 from parley_plugins.robot_grid import grid as grids
@@ -79,7 +78,9 @@ def published_controller(path: Path) -> dict[tuple[int, int], str]:
                 variables["yhat"]: manager.integer(y),
                 variables["crashed"]: manager.integer(0),
             }
-            enabled = [c.action_name for c in module.commands if c.guard_expression.substitute(valuation).evaluate_as_bool()]
+            enabled = [
+                c.action_name for c in module.commands if c.guard_expression.substitute(valuation).evaluate_as_bool()
+            ]
             if len(enabled) > 1:
                 raise RuntimeError(f"{path}: several moves at ({x},{y})")
             if enabled:
@@ -101,7 +102,11 @@ def check_controllers(reference: Path, maps: list[int]) -> tuple[int, list[str]]
 def check_baseline(reference: Path, n: int) -> tuple[int, int, list[str]]:
     document = parley("baseline", "robot_grid", "--set", f"map={reference / 'maps' / f'map_{n}.csv'}")
     values = {entry["decisions"]["c"]: entry["values"] for entry in document["policies"]}
-    published = [line.split("\t")[:2] for line in (reference / "baseline" / f"map_{n}.tsv").read_text().splitlines() if line.strip()]
+    published = [
+        line.split("\t")[:2]
+        for line in (reference / "baseline" / f"map_{n}.tsv").read_text().splitlines()
+        if line.strip()
+    ]
     matched, failures = 0, []
     for period, (success, cost) in enumerate(published, start=1):
         interval = period + 1
@@ -119,12 +124,16 @@ def check_baseline(reference: Path, n: int) -> tuple[int, int, list[str]]:
 def storm_on_published(reference: Path, n: int, names: list[str], row: list[str]) -> tuple[float, float]:
     """Success and cost of a published policy by plain stormpy on the published URC model."""
     text = (reference / "models" / "robot" / f"model_{n}_umc.prism").read_text()
-    program = prism.parse_program(text.replace("evolve int", "const int").replace(" [0..10];", ";"), origin=f"model_{n}_umc")
+    program = prism.parse_program(
+        text.replace("evolve int", "const int").replace(" [0..10];", ";"), origin=f"model_{n}_umc"
+    )
     manager = program.expression_manager
     by_name = {c.name: c.expression_variable for c in program.constants}
     instance = program.define_undefined_constants({by_name[k]: manager.integer(int(v)) for k, v in zip(names, row)})
     formulas = (reference / "models" / "robot" / "robot.pctl").read_text()
-    properties = prism.parse_properties([f for f in formulas.splitlines() if f.strip() and not f.startswith("//")], instance)
+    properties = prism.parse_properties(
+        [f for f in formulas.splitlines() if f.strip() and not f.startswith("//")], instance
+    )
     model = stormpy.build_model(instance, properties)
     state = model.initial_states[0]
     success, cost = (stormpy.model_checking(model, p).get_value(state) for p in properties)
@@ -152,7 +161,9 @@ def check_front(reference: Path, n: int, rep: int) -> tuple[int, int, list[str],
                 handle.write(f"r{index},{x},{y},{max(1, int(value))}\n")
         path = handle.name
     try:
-        document = parley("evaluate", "robot_grid", "--set", f"map={reference / 'maps' / f'map_{n}.csv'}", "--policies", path)
+        document = parley(
+            "evaluate", "robot_grid", "--set", f"map={reference / 'maps' / f'map_{n}.csv'}", "--policies", path
+        )
     finally:
         Path(path).unlink()
     values = {entry["policy"]: entry["values"] for entry in document["policies"]}
@@ -195,7 +206,9 @@ def main() -> int:
         results = list(pool.map(lambda n: check_baseline(reference, n), maps))
     matched = sum(r[0] for r in results)
     total = sum(r[1] for r in results)
-    print(f"baselines: {matched}/{total} values of intervals 2..10 match the published baseline (success 1e-6, cost 5e-3)")
+    print(
+        f"baselines: {matched}/{total} values of intervals 2..10 match the published baseline (success 1e-6, cost 5e-3)"
+    )
     for result in results:
         for failure in result[2]:
             print("  " + failure)

@@ -40,7 +40,9 @@ PARLEY_PROPERTIES = ['P=? [F "goal"]', 'R{"energy"}=? [C<=200]']
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--reference", type=Path, default=ROOT.parent / "shared/reference/parley2024")
-    parser.add_argument("--random", type=int, default=20, help="random policies besides the published one and the baselines")
+    parser.add_argument(
+        "--random", type=int, default=20, help="random policies besides the published one and the baselines"
+    )
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     folder = args.reference / "models" / "turtlebot"
@@ -61,12 +63,16 @@ def main() -> int:
     policies += [(f"period-{k}", [k] * len(names)) for k in range(1, 6)]
     policies += [(f"random-{i}", rng.integers(1, 6, len(names)).tolist()) for i in range(args.random)]
 
-    print(f"{'policy':>20}  {'published P':>12} {'E':>10}  {'parley P':>12} {'E':>10}  {'diff':>8}  {'repaired P':>10} {'E':>10}")
+    print(
+        f"{'policy':>20}  {'published P':>12} {'E':>10}  {'parley P':>12} {'E':>10}  {'diff':>8}  {'repaired P':>10} {'E':>10}"
+    )
     worst = 0.0
     start = time.perf_counter()
     for label, values in policies:
         by_name = dict(zip(names, values))
-        defined = re.sub(r"evolve int (decision_\w+)\[1\.\.5\];", lambda m: f"const int {m.group(1)} = {by_name[m.group(1)]};", text)
+        defined = re.sub(
+            r"evolve int (decision_\w+)\[1\.\.5\];", lambda m: f"const int {m.group(1)} = {by_name[m.group(1)]};", text
+        )
         published = storm_values(defined, PUBLISHED_PROPERTIES)
         ours = storm_values(kept.prism, PARLEY_PROPERTIES, _constants(kept, by_name))
         fixed = storm_values(repaired.prism, PARLEY_PROPERTIES, _constants(repaired, by_name))
@@ -76,7 +82,9 @@ def main() -> int:
             f"{label:>20}  {published[0]:12.6f} {published[1]:10.4f}  {ours[0]:12.6f} {ours[1]:10.4f}  {diff:8.1e}  "
             f"{fixed[0]:10.6f} {fixed[1]:10.4f}"
         )
-    print(f"{len(policies)} policies in {time.perf_counter() - start:.0f} s; largest difference published vs parley: {worst:.1e}")
+    print(
+        f"{len(policies)} policies in {time.perf_counter() - start:.0f} s; largest difference published vs parley: {worst:.1e}"
+    )
     return 0 if worst <= 1e-9 else 1
 
 

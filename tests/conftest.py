@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-
 import pytest
 
 from parley_core import Baseline, DecisionKind, Direction, Objective, Service, SystemModel
 from parley_core.testing import storm_values  # noqa: F401  (tests import it from here)
+
+pytest_plugins = ["pytester"]
 
 # A server that is healthy (h=1) or degraded (h=0); each round it degrades with probability
 # 0.2 (from healthy) and, unless probed, stays as it is. A probe (every c-th round, counted by
@@ -50,4 +51,3 @@ def toy_system(prism: str = TOY, **changes) -> SystemModel:
 @pytest.fixture
 def toy() -> SystemModel:
     return toy_system()
-

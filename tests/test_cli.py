@@ -78,12 +78,21 @@ def test_evaluate_constant_and_policies_file_agree_with_the_baseline(free_map, t
 def test_run_writes_the_run_directory_and_is_reproducible(tmp_path):
     first, second = tmp_path / "a", tmp_path / "b"
     for out in (first, second):
-        result = invoke("run", "robot_grid", *QUICK, "--population", "8", "--generations", "3", "--seed", "7", "--out", str(out))
+        result = invoke(
+            "run", "robot_grid", *QUICK, "--population", "8", "--generations", "3", "--seed", "7", "--out", str(out)
+        )
         assert result.exit_code == 0, result.stderr
     names = {p.name for p in first.iterdir()}
     assert names == {
-        "model.prism", "properties.pctl", "front.csv", "policies.csv", "decisions.csv", "baseline.csv", "summary.json",
-        "front.png", "policy.png",
+        "model.prism",
+        "properties.pctl",
+        "front.csv",
+        "policies.csv",
+        "decisions.csv",
+        "baseline.csv",
+        "summary.json",
+        "front.png",
+        "policy.png",
     }
     assert (first / "front.csv").read_text() == (second / "front.csv").read_text()
     assert (first / "policies.csv").read_text() == (second / "policies.csv").read_text()
@@ -105,15 +114,53 @@ def test_run_writes_the_run_directory_and_is_reproducible(tmp_path):
 
 
 def test_run_and_evaluate_with_the_storm_evaluator(tmp_path):
-    result = invoke("run", "robot_grid", *QUICK, "--population", "6", "--generations", "2", "--evaluator", "storm", "--out", str(tmp_path / "r"))
+    result = invoke(
+        "run",
+        "robot_grid",
+        *QUICK,
+        "--population",
+        "6",
+        "--generations",
+        "2",
+        "--evaluator",
+        "storm",
+        "--out",
+        str(tmp_path / "r"),
+    )
     assert result.exit_code == 0, result.stderr
     summary = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert summary["evaluator"] == "storm" and summary["verification"]["max_difference"] == 0.0
-    storm = json.loads(invoke("evaluate", "robot_grid", *QUICK, "--constant", "3", "--evaluator", "storm", "--json").stdout)
+    storm = json.loads(
+        invoke("evaluate", "robot_grid", *QUICK, "--constant", "3", "--evaluator", "storm", "--json").stdout
+    )
     quotient = json.loads(invoke("evaluate", "robot_grid", *QUICK, "--constant", "3", "--json").stdout)
     assert quotient["evaluator"] == "quotient"
     assert quotient["policies"][0]["values"] == pytest.approx(storm["policies"][0]["values"], abs=1e-9)
-    assert_user_error(invoke("evaluate", "robot_grid", *QUICK, "--constant", "3", "--evaluator", "fast"), "unknown evaluator 'fast'; valid: quotient, storm")
+    assert_user_error(
+        invoke("evaluate", "robot_grid", *QUICK, "--constant", "3", "--evaluator", "fast"),
+        "unknown evaluator 'fast'; valid: quotient, storm",
+    )
+
+
+def test_run_stops_at_an_evaluation_budget_or_a_time_limit(tmp_path):
+    result = invoke(
+        "run", "robot_grid", *QUICK, "--population", "8", "--max-evaluations", "30", "--out", str(tmp_path / "b")
+    )
+    assert result.exit_code == 0, result.stderr
+    search = json.loads((tmp_path / "b" / "summary.json").read_text())["search"]
+    assert search["evaluations"] == 30 and search["stopped_by"] == "evaluations" and search["generations"] is None
+    assert "stopped by evaluations" in result.stdout
+    result = invoke(
+        "run", "robot_grid", *QUICK, "--population", "8", "--time-limit", "0.5", "--out", str(tmp_path / "t")
+    )
+    assert result.exit_code == 0, result.stderr
+    search = json.loads((tmp_path / "t" / "summary.json").read_text())["search"]
+    assert search["stopped_by"] == "time" and search["time_limit_seconds"] == 0.5
+    result = invoke(
+        "run", "robot_grid", *QUICK, "--generations", "2", "--max-evaluations", "1000", "--out", str(tmp_path / "g")
+    )
+    assert json.loads((tmp_path / "g" / "summary.json").read_text())["search"]["stopped_by"] == "generations"
+    assert invoke("run", "robot_grid", *QUICK, "--max-evaluations", "0", "--out", str(tmp_path / "z")).exit_code == 2
 
 
 def test_run_refuses_a_non_empty_output_directory(tmp_path):
@@ -134,7 +181,10 @@ def test_run_refuses_a_non_empty_output_directory(tmp_path):
         (["baseline", "robot_grid", "--set", "map=/no/such/map.csv"], "map file /no/such/map.csv does not exist"),
         (["evaluate", "robot_grid", "--set", "size=3"], "give exactly one of --policies FILE and --constant K"),
         (["evaluate", "robot_grid", "--set", "size=3", "--constant", "11"], "is outside 1..10"),
-        (["evaluate", "robot_grid", "--set", "size=3", "--policies", "/no/such.csv"], "policies file /no/such.csv does not exist"),
+        (
+            ["evaluate", "robot_grid", "--set", "size=3", "--policies", "/no/such.csv"],
+            "policies file /no/such.csv does not exist",
+        ),
     ],
 )
 def test_user_errors_are_one_line_with_status_2(args, message):

@@ -35,7 +35,9 @@ def test_a_failing_policy_plot_costs_only_the_plot(toy, tmp_path):
         path.write_bytes(b"half a png")
         raise RuntimeError("the plugin's drawing is broken")
 
-    case = CaseStudy(name="toy", description="toy", options_type=NoOptions, build=lambda _: toy, plot_policy=broken_plot)
+    case = CaseStudy(
+        name="toy", description="toy", options_type=NoOptions, build=lambda _: toy, plot_policy=broken_plot
+    )
     prepared = Prepared(case=case, options=NoOptions(), system=toy, family=family(toy))
     result = run(prepared, SearchSettings(population=6, generations=2, seed=1), workers=1)
     written = {p.name for p in write_run(result, tmp_path / "run")}

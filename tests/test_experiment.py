@@ -29,9 +29,15 @@ OBJECTIVES = (
 
 def record(instance: str, repetition: int, front, baseline, campaign: str = "c") -> RunRecord:
     return RunRecord(
-        campaign=campaign, instance=instance, repetition=repetition, seed=repetition + 1, options={},
-        objectives=OBJECTIVES, front=front_from_json(OBJECTIVES, {"policies": [[1]] * len(front), "values": front}),
-        baseline=baseline_from_json(OBJECTIVES, {"names": ["b"] * len(baseline), "values": baseline}), summary={},
+        campaign=campaign,
+        instance=instance,
+        repetition=repetition,
+        seed=repetition + 1,
+        options={},
+        objectives=OBJECTIVES,
+        front=front_from_json(OBJECTIVES, {"policies": [[1]] * len(front), "values": front}),
+        baseline=baseline_from_json(OBJECTIVES, {"names": ["b"] * len(baseline), "values": baseline}),
+        summary={},
     )
 
 
@@ -110,15 +116,38 @@ def test_report_compares_with_published_fronts(tmp_path):
 
 def _campaign_command(store, name="k"):
     return [
-        sys.executable, "-m", "parley_core", "experiment", "run", "robot_grid", "--store", str(store), "--name", name,
-        "--grid", "seed=1,2,3,4", "--set", "size=4", "--set", "max_interval=3", "--reps", "2",
-        "--population", "6", "--generations", "2", "--workers", "1",
+        sys.executable,
+        "-m",
+        "parley_core",
+        "experiment",
+        "run",
+        "robot_grid",
+        "--store",
+        str(store),
+        "--name",
+        name,
+        "--grid",
+        "seed=1,2,3,4",
+        "--set",
+        "size=4",
+        "--set",
+        "max_interval=3",
+        "--reps",
+        "2",
+        "--population",
+        "6",
+        "--generations",
+        "2",
+        "--workers",
+        "1",
     ]
 
 
 def test_a_campaign_killed_with_sigkill_resumes_without_losing_or_repeating(tmp_path):
     store = tmp_path / "k.sqlite"
-    process = subprocess.Popen(_campaign_command(store), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    process = subprocess.Popen(
+        _campaign_command(store), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
     try:
         deadline = time.time() + 120
         stored = 0
@@ -175,7 +204,14 @@ def test_scheduler_that_cannot_be_reached(tmp_path):
 def test_unverified_fronts_are_verified_later_by_storm(tmp_path):
     from parley_core.experiment.campaign import verify_stored
 
-    specs = plan("v", ROBOT, [("seed=1",), ("seed=2",)], ["size=4", "max_interval=3"], 2, Budget(population=6, generations=2, verify=False))
+    specs = plan(
+        "v",
+        ROBOT,
+        [("seed=1",), ("seed=2",)],
+        ["size=4", "max_interval=3"],
+        2,
+        Budget(population=6, generations=2, verify=False),
+    )
     with Store(tmp_path / "v.sqlite") as store:
         store.begin_campaign("v", "robot_grid", {})
         execute(specs, store, workers=1)
@@ -184,7 +220,9 @@ def test_unverified_fronts_are_verified_later_by_storm(tmp_path):
         # a sample first: repetition 1 of each instance
         assert verify_stored(store, "v", "robot_grid", workers=1, repetitions={1})[:2] == (2, 0)
         assert sorted(r.repetition for r in store.runs("v") if r.verified) == [1, 1]
-        document = report.table2_document("v", "robot_grid", {}, list(store.runs("v")), [], [], ["success >=", "cost <="], False)
+        document = report.table2_document(
+            "v", "robot_grid", {}, list(store.runs("v")), [], [], ["success >=", "cost <="], False
+        )
         assert "Front values: Storm's for 2 of 4 runs" in document
         now, already, worst = verify_stored(store, "v", "robot_grid", workers=1)
         assert (now, already) == (2, 2) and worst <= 1e-9

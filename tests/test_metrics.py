@@ -47,7 +47,9 @@ def test_spread_of_evenly_spaced_points_is_zero_and_grows_with_unevenness():
     # extreme points 0.1 away (normalised) at both ends add d_f = d_l = 0.1
     extremes = np.array([[-0.1, 1.0], [1.1, 0.0]])
     expected = (0.1 + 0.1 + 0.8 * np.sqrt(2)) / (0.2 + 2 * 0.5 * np.sqrt(2))
-    assert metrics.spread(uneven, [Direction.MIN, Direction.MIN], bounds=(np.array([0, 0]), np.array([1, 1])), extremes=extremes) == pytest.approx(expected)
+    assert metrics.spread(
+        uneven, [Direction.MIN, Direction.MIN], bounds=(np.array([0, 0]), np.array([1, 1])), extremes=extremes
+    ) == pytest.approx(expected)
     assert metrics.spread(even[:1], [Direction.MIN, Direction.MIN]) == 1.0
 
 

@@ -24,6 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 class _Empty:
     pass
 
+
 EXAMPLE = ROOT / "docs" / "examples" / "parley-thermostat"
 
 
@@ -31,6 +32,29 @@ def test_builtins_are_registered():
     registry = load_registry(plugin_manager(entry_points=False))
     assert "robot_grid" in registry.names
     assert registry.providers["robot_grid"] == "parley_plugins.robot_grid"
+
+
+def test_a_misspelt_hook_is_an_error_naming_the_hooks():
+    module = types.ModuleType("misspelt")
+
+    @hookimpl
+    def parley_case_study():  # the hook is parley_case_studies
+        return []
+
+    module.parley_case_study = parley_case_study
+    pm = plugin_manager(entry_points=False)
+    pm.register(module, name="misspelt")
+    from parley_core.plugins import check_hooks
+
+    with pytest.raises(
+        PluginError, match=r"plugin misspelt implements a hook parley does not know .*parley_case_studies"
+    ):
+        check_hooks(pm)
+
+
+def test_list_names_each_plugin_with_its_distribution():
+    registry = load_registry(plugin_manager(entry_points=False))
+    assert registry.provider("robot_grid").startswith("parley_plugins.robot_grid (parley ")
 
 
 def test_unknown_case_study_lists_the_valid_names():
@@ -53,7 +77,9 @@ def _plugin(name: str) -> types.ModuleType:
 def test_duplicate_names_are_an_error_naming_both_plugins():
     pm = plugin_manager(entry_points=False)
     pm.register(_plugin("robot_grid"), name="impostor")
-    with pytest.raises(PluginError, match="'robot_grid' is provided twice, by parley_plugins.robot_grid and by impostor"):
+    with pytest.raises(
+        PluginError, match="'robot_grid' is provided twice, by parley_plugins.robot_grid and by impostor"
+    ):
         load_registry(pm)
 
 
@@ -80,17 +106,24 @@ def _install_example(site: Path) -> dict[str, str]:
     (info / "entry_points.txt").write_text("[parley]\nthermostat = parley_thermostat\n")
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(site), env.get("PYTHONPATH", "")])
+    env["COLUMNS"] = "200"  # rich wraps table cells to the terminal width
     return env
 
 
 def test_an_installed_plugin_is_found_through_its_entry_point_and_runs(tmp_path):
     env = _install_example(tmp_path)
-    listed = subprocess.run([sys.executable, "-m", "parley_core", "list"], env=env, capture_output=True, text=True, timeout=120)
+    listed = subprocess.run(
+        [sys.executable, "-m", "parley_core", "list"], env=env, capture_output=True, text=True, timeout=120
+    )
     assert listed.returncode == 0, listed.stderr
     assert "thermostat" in listed.stdout and "robot_grid" in listed.stdout
+    assert "parley-thermostat 0.1.0" in listed.stdout
     baseline = subprocess.run(
         [sys.executable, "-m", "parley_core", "baseline", "thermostat", "--json", "--workers", "1"],
-        env=env, capture_output=True, text=True, timeout=120,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert baseline.returncode == 0, baseline.stderr
     document = json.loads(baseline.stdout)
@@ -103,11 +136,26 @@ def test_an_installed_plugin_is_found_through_its_entry_point_and_runs(tmp_path)
     assert 0 < by_name["every-2"]["discomfort"] < by_name["every-4"]["discomfort"]
 
 
+def test_an_installed_plugin_with_a_misspelt_hook_is_a_clear_error(tmp_path):
+    env = _install_example(tmp_path)
+    source = (tmp_path / "parley_thermostat.py").read_text()
+    (tmp_path / "parley_thermostat.py").write_text(
+        source.replace("def parley_case_studies(", "def parley_casestudies(")
+    )
+    listed = subprocess.run(
+        [sys.executable, "-m", "parley_core", "list"], env=env, capture_output=True, text=True, timeout=120
+    )
+    assert listed.returncode == 2, listed.stderr
+    assert listed.stderr.startswith("error: plugin thermostat implements a hook parley does not know")
+    assert "parley_case_studies" in listed.stderr and "Traceback" not in listed.stderr
+
+
 def test_a_broken_installed_plugin_is_a_clear_error(tmp_path):
     env = _install_example(tmp_path)
     (tmp_path / "parley_thermostat.py").write_text("raise ImportError('boom')\n")
-    listed = subprocess.run([sys.executable, "-m", "parley_core", "list"], env=env, capture_output=True, text=True, timeout=120)
+    listed = subprocess.run(
+        [sys.executable, "-m", "parley_core", "list"], env=env, capture_output=True, text=True, timeout=120
+    )
     assert listed.returncode == 2
     assert listed.stderr.strip().startswith("error: an installed parley plugin failed to load (ImportError: boom)")
     assert "Traceback" not in listed.stderr
-

@@ -7,10 +7,10 @@ import itertools
 
 import numpy as np
 import pytest
+from conftest import TOY, toy_system
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import TOY, toy_system
 from parley_core.augment import augment
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.evaluate.storm import StormEvaluator
@@ -22,19 +22,22 @@ ROBOT = load_registry().get("robot_grid")
 # The toy (tests/conftest.py) with an absorbing "broken" state reached from a degraded
 # server, so that rewards until it are finite and total rewards can be infinite, and an
 # overlap of two enabled commands (probe and inspect) that Storm mixes uniformly.
-BREAKING = TOY.replace(
-    "  [wait] step<c & h=0 -> (phase'=1-phase) & (step'=step+1);",
-    "  [wait] step<c & h=0 -> 0.7 : (phase'=1-phase) & (step'=step+1) + 0.3 : (h'=0) & (broken'=true);\n"
-    "  [inspect] step>=c & phase=1 & !broken -> (step'=1);",
-).replace("  step : [1..K] init 1;", "  step : [1..K] init 1;\n  broken : bool init false;").replace(
-    "  [probe] step>=c ->", "  [probe] step>=c & !broken ->"
-).replace("  [wait] step<c & h=1 ->", "  [wait] step<c & h=1 & !broken ->")
+BREAKING = (
+    TOY.replace(
+        "  [wait] step<c & h=0 -> (phase'=1-phase) & (step'=step+1);",
+        "  [wait] step<c & h=0 -> 0.7 : (phase'=1-phase) & (step'=step+1) + 0.3 : (h'=0) & (broken'=true);\n"
+        "  [inspect] step>=c & phase=1 & !broken -> (step'=1);",
+    )
+    .replace("  step : [1..K] init 1;", "  step : [1..K] init 1;\n  broken : bool init false;")
+    .replace("  [probe] step>=c ->", "  [probe] step>=c & !broken ->")
+    .replace("  [wait] step<c & h=1 ->", "  [wait] step<c & h=1 & !broken ->")
+)
 
 OBJECTIVES = {
-    "reach": 'P=? [F broken]',
-    "until": 'P=? [h=1 U broken]',
-    "bounded": 'P=? [F<=6 broken]',
-    "bounded_until": 'P=? [phase=0 | h=1 U<=5 broken]',
+    "reach": "P=? [F broken]",
+    "until": "P=? [h=1 U broken]",
+    "bounded": "P=? [F<=6 broken]",
+    "bounded_until": "P=? [phase=0 | h=1 U<=5 broken]",
     "reward_reach": 'R{"cost"}=? [F broken]',
     "reward_reach_infinite": 'R{"cost"}=? [F h=2]',
     "cumulative": 'R{"cost"}=? [C<=17]',
@@ -44,7 +47,9 @@ OBJECTIVES = {
 
 
 def breaking_system(objectives: dict[str, str]):
-    text = BREAKING.replace("endrewards", "endrewards\nrewards \"once\"\n  [probe] step=3 : 2;\n  phase=1 & !broken & h=0 : 0;\nendrewards", 1)
+    text = BREAKING.replace(
+        "endrewards", 'endrewards\nrewards "once"\n  [probe] step=3 : 2;\n  phase=1 & !broken & h=0 : 0;\nendrewards', 1
+    )
     return toy_system(
         prism=text,
         objectives=[Objective(name=name, formula=formula, direction="min") for name, formula in objectives.items()],
@@ -102,7 +107,9 @@ def test_unsupported_properties_fall_back_to_storm():
 def test_robot_random_policies_and_baselines_agree_with_storm(size, seed, p):
     family = augment(ROBOT.build(ROBOT.options([f"size={size}", f"seed={seed}", f"p={p}"])))
     rng = np.random.default_rng(seed)
-    policies = np.vstack([[b.values for b in family.baseline_policies()], rng.integers(1, 11, size=(12, len(family.decisions)))])
+    policies = np.vstack(
+        [[b.values for b in family.baseline_policies()], rng.integers(1, 11, size=(12, len(family.decisions)))]
+    )
     with QuotientEvaluator(family, workers=1) as quotient, StormEvaluator(family, workers=1) as storm:
         assert np.abs(quotient.evaluate(policies) - storm.evaluate(policies)).max() <= 1e-9
 
@@ -124,7 +131,9 @@ def test_worker_processes_give_bit_identical_values():
     data=st.data(),
 )
 def test_property_quotient_equals_storm_on_random_maps_and_policies(size, seed, p, horizon, max_interval, data):
-    options = ROBOT.options([f"size={size}", f"seed={seed}", f"p={p}", f"horizon={horizon}", f"max_interval={max_interval}"])
+    options = ROBOT.options(
+        [f"size={size}", f"seed={seed}", f"p={p}", f"horizon={horizon}", f"max_interval={max_interval}"]
+    )
     family = augment(ROBOT.build(options))
     n = len(family.decisions)
     policy = data.draw(st.lists(st.integers(1, max_interval), min_size=n, max_size=n))

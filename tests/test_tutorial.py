@@ -41,8 +41,22 @@ def workdir(tmp_path_factory):
     result = invoke("augment", MODEL, "--decision", "c=1..8", "--observe", "est,load", "--out", root / "pump-urc.prism")
     assert "4 of 6 observation valuations of (est, load) consult a service" in result.stderr
     invoke(
-        "synthesize", MODEL, "--props", PROPS, "--decision", "c=1..8", "--observe", "est,load",
-        "--population", "20", "--generations", "6", "--workers", "1", "--out", root / "runs" / "pump",
+        "synthesize",
+        MODEL,
+        "--props",
+        PROPS,
+        "--decision",
+        "c=1..8",
+        "--observe",
+        "est,load",
+        "--population",
+        "20",
+        "--generations",
+        "6",
+        "--workers",
+        "1",
+        "--out",
+        root / "runs" / "pump",
     )
     return root
 
@@ -105,7 +119,17 @@ def test_simulating_the_model_file_agrees_with_model_checking(workdir):
     run = workdir / "runs" / "pump"
     invoke("select", run, "--constraint", "broken<=0.1", "--prefer", "cost")
     result = invoke(
-        "simulate", MODEL, "--props", PROPS, "--policy", run / "controller.json", "--episodes", "3000", "--seed", "3", "--json"
+        "simulate",
+        MODEL,
+        "--props",
+        PROPS,
+        "--policy",
+        run / "controller.json",
+        "--episodes",
+        "3000",
+        "--seed",
+        "3",
+        "--json",
     )
     estimates = json.loads(result.stdout)
     assert [e["objective"] for e in estimates] == ["broken", "cost"]

@@ -8,9 +8,9 @@ import json
 import pytest
 from typer.testing import CliRunner
 
+from parley_core import URC, ObservationError
 from parley_core.cli import app
 from parley_core.errors import PolicyError
-from parley_core import URC, ObservationError
 
 runner = CliRunner()
 
@@ -22,7 +22,22 @@ def invoke(*args):
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("runs") / "robot"
-    result = invoke("run", "robot_grid", "--set", "size=6", "--set", "seed=3", "--population", "16", "--generations", "4", "--workers", "1", "--out", out)
+    result = invoke(
+        "run",
+        "robot_grid",
+        "--set",
+        "size=6",
+        "--set",
+        "seed=3",
+        "--population",
+        "16",
+        "--generations",
+        "4",
+        "--workers",
+        "1",
+        "--out",
+        out,
+    )
     assert result.exit_code == 0, result.stderr
     return out
 
@@ -34,7 +49,9 @@ def front(run_dir):
 
 def test_select_the_cheapest_policy_meeting_a_constraint(run_dir, tmp_path):
     values = front(run_dir)
-    result = invoke("select", run_dir, "--constraint", "success>=0.8", "--prefer", "cost", "--out", tmp_path / "c.json", "--json")
+    result = invoke(
+        "select", run_dir, "--constraint", "success>=0.8", "--prefer", "cost", "--out", tmp_path / "c.json", "--json"
+    )
     assert result.exit_code == 0, result.stderr
     chosen = json.loads(result.stdout)["policy"]
     feasible = {name: v for name, v in values.items() if v[0] >= 0.8}
@@ -86,7 +103,9 @@ def test_the_runtime_urc_refuses_observations_it_was_not_made_for(run_dir, tmp_p
 
 def test_ten_thousand_simulated_episodes_agree_with_model_checking(run_dir, tmp_path):
     invoke("select", run_dir, "--knee", "--out", tmp_path / "c.json")
-    result = invoke("simulate", run_dir, "--policy", tmp_path / "c.json", "--episodes", "10000", "--seed", "7", "--json")
+    result = invoke(
+        "simulate", run_dir, "--policy", tmp_path / "c.json", "--episodes", "10000", "--seed", "7", "--json"
+    )
     assert result.exit_code == 0, result.stderr
     estimates = {e["objective"]: e for e in json.loads(result.stdout)}
     assert set(estimates) == {"success", "cost"}

@@ -7,11 +7,11 @@ import json
 
 import pytest
 import stormpy
+from conftest import TOY, storm_values
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from conftest import TOY, storm_values
 from parley_core.cli import app
 
 runner = CliRunner()
@@ -39,7 +39,9 @@ def invoke(*args):
 
 
 def test_augment_writes_a_parametric_model_with_exactly_the_decision_constants(files):
-    result = invoke("augment", files / "server.prism", "--decision", "c=1..3", "--observe", "phase", "--out", files / "aug.prism")
+    result = invoke(
+        "augment", files / "server.prism", "--decision", "c=1..3", "--observe", "phase", "--out", files / "aug.prism"
+    )
     assert result.exit_code == 0, result.stderr
     assert "2 of 2 observation valuations of (phase) consult a service" in result.stderr
     program = stormpy.parse_prism_program(str(files / "aug.prism"))
@@ -47,12 +49,18 @@ def test_augment_writes_a_parametric_model_with_exactly_the_decision_constants(f
     # the counter's bound c became the decisions' largest value
     assert "step: [1..3]" in (files / "aug.prism").read_text()
     # values: the policy c_0=1, c_1=3 equals the original model with c as that function of phase
-    by_hand = USER.replace("const int c = 2;", "formula c = (phase=0 ? 1 : 3);").replace("step : [1..c]", "step : [1..3]")
+    by_hand = USER.replace("const int c = 2;", "formula c = (phase=0 ? 1 : 3);").replace(
+        "step : [1..c]", "step : [1..3]"
+    )
     formulas = ['R{"cost"}=? [C<=10]', 'P=? [F<=3 !"healthy"]']
-    assert storm_values((files / "aug.prism").read_text(), formulas, {"c_0": 1, "c_1": 3}) == pytest.approx(storm_values(by_hand, formulas), abs=1e-12)
+    assert storm_values((files / "aug.prism").read_text(), formulas, {"c_0": 1, "c_1": 3}) == pytest.approx(
+        storm_values(by_hand, formulas), abs=1e-12
+    )
 
 
-@pytest.mark.parametrize(("form", "declaration"), [("evochecker", "evolve int c_0 [1..3];"), ("paynt", "hole int c_0 in {1,2,3};")])
+@pytest.mark.parametrize(
+    ("form", "declaration"), [("evochecker", "evolve int c_0 [1..3];"), ("paynt", "hole int c_0 in {1,2,3};")]
+)
 def test_exports_for_other_tools(files, form, declaration):
     result = invoke("augment", files / "server.prism", "--decision", "c=1..3", "--observe", "phase", "--format", form)
     assert result.exit_code == 0, result.stderr
@@ -62,8 +70,22 @@ def test_exports_for_other_tools(files, form, declaration):
 def test_synthesize_runs_the_pipeline_on_a_user_model(files):
     out = files / "run"
     result = invoke(
-        "synthesize", files / "server.prism", "--props", files / "server.pctl", "--decision", "c=1..3", "--observe", "phase",
-        "--population", "10", "--generations", "4", "--workers", "1", "--out", out,
+        "synthesize",
+        files / "server.prism",
+        "--props",
+        files / "server.pctl",
+        "--decision",
+        "c=1..3",
+        "--observe",
+        "phase",
+        "--population",
+        "10",
+        "--generations",
+        "4",
+        "--workers",
+        "1",
+        "--out",
+        out,
     )
     assert result.exit_code == 0, result.stderr
     summary = json.loads((out / "summary.json").read_text())
@@ -86,15 +108,47 @@ def test_synthesize_runs_the_pipeline_on_a_user_model(files):
 def test_constraints_keep_only_policies_that_meet_them(files):
     out = files / "run"
     result = invoke(
-        "synthesize", files / "server.prism", "--props", files / "server.pctl", "--decision", "c=1..3", "--observe", "phase",
-        "--population", "10", "--generations", "3", "--workers", "1", "--constraint", "degraded<=0.5", "--out", out,
+        "synthesize",
+        files / "server.prism",
+        "--props",
+        files / "server.pctl",
+        "--decision",
+        "c=1..3",
+        "--observe",
+        "phase",
+        "--population",
+        "10",
+        "--generations",
+        "3",
+        "--workers",
+        "1",
+        "--constraint",
+        "degraded<=0.5",
+        "--out",
+        out,
     )
     assert result.exit_code == 0, result.stderr
     with open(out / "front.csv") as handle:
         assert all(float(row["degraded"]) <= 0.5 for row in csv.DictReader(handle))
     impossible = invoke(
-        "synthesize", files / "server.prism", "--props", files / "server.pctl", "--decision", "c=1..3", "--observe", "phase",
-        "--population", "6", "--generations", "1", "--workers", "1", "--constraint", "cost<=-1", "--out", files / "none",
+        "synthesize",
+        files / "server.prism",
+        "--props",
+        files / "server.pctl",
+        "--decision",
+        "c=1..3",
+        "--observe",
+        "phase",
+        "--population",
+        "6",
+        "--generations",
+        "1",
+        "--workers",
+        "1",
+        "--constraint",
+        "cost<=-1",
+        "--out",
+        files / "none",
     )
     assert impossible.exit_code == 2
     assert "no evaluated policy meets cost<=-1" in impossible.stderr
@@ -109,20 +163,40 @@ def _error(result, message):
 @pytest.mark.parametrize(
     ("model", "props", "args", "message"),
     [
-        (USER.replace("endmodule", "  [] h=2 -> (h'=0)\nendmodule"), PROPS, [], "does not parse: Parsing error at 12:1: expecting \";\""),
+        (
+            USER.replace("endmodule", "  [] h=2 -> (h'=0)\nendmodule"),
+            PROPS,
+            [],
+            'does not parse: Parsing error at 12:1: expecting ";"',
+        ),
         (USER.replace("dtmc", "mdp"), PROPS, [], "is a MDP but parley needs a DTMC"),
         (USER, PROPS, ["--decision", "q=1..3"], "--decision q: the model declares no constant of that name"),
-        (USER.replace("const int c = 2;", "const int c;\nconst int d = 1;"), PROPS, ["--decision", "d=1..3"], "leaves constants c undefined"),
-        (USER.replace("const int c = 2;", "const int c = 2;\nconst int d = 1;"), PROPS, ["--decision", "c=1..3", "--decision", "d=1..3"], "constant(s) d are used in no command"),
+        (
+            USER.replace("const int c = 2;", "const int c;\nconst int d = 1;"),
+            PROPS,
+            ["--decision", "d=1..3"],
+            "leaves constants c undefined",
+        ),
+        (
+            USER.replace("const int c = 2;", "const int c = 2;\nconst int d = 1;"),
+            PROPS,
+            ["--decision", "c=1..3", "--decision", "d=1..3"],
+            "constant(s) d are used in no command",
+        ),
         (USER, PROPS, ["--observe", "nothing"], "--observe variable 'nothing' is not a variable of the model"),
         (USER, PROPS, ["--decision", "c=3..1"], "the range 3..1 is empty"),
         (USER, PROPS, ["--decision", "c=a..b"], "LOW and HIGH must be integers"),
         (USER, PROPS, ["--decision", "c"], "malformed --decision 'c'"),
-        (USER, "// name: cost, min\nR{\"cost\"}=? [C<=\n", [], "does not parse"),
-        (USER, "// name: cost, min\nR{\"energy\"}=? [C<=10]\n", [], 'uses reward structure "energy", which the model lacks'),
-        (USER, "// name: gone, max\nP=? [F \"nolabel\"]\n", [], "nolabel"),
-        (USER, "R{\"cost\"}=? [C<=10]\n", [], "objective objective1 has no direction"),
-        (USER, "// name: cost, sideways\nR{\"cost\"}=? [C<=10]\n", [], "direction 'sideways' is neither max nor min"),
+        (USER, '// name: cost, min\nR{"cost"}=? [C<=\n', [], "does not parse"),
+        (
+            USER,
+            '// name: cost, min\nR{"energy"}=? [C<=10]\n',
+            [],
+            'uses reward structure "energy", which the model lacks',
+        ),
+        (USER, '// name: gone, max\nP=? [F "nolabel"]\n', [], "nolabel"),
+        (USER, 'R{"cost"}=? [C<=10]\n', [], "objective objective1 has no direction"),
+        (USER, '// name: cost, sideways\nR{"cost"}=? [C<=10]\n', [], "direction 'sideways' is neither max nor min"),
         (USER, "", [], "holds no property"),
     ],
 )
@@ -132,8 +206,21 @@ def test_user_errors(tmp_path, model, props, args, message):
     decision = [] if any(a == "--decision" for a in args) else ["--decision", "c=1..3"]
     observe = [] if "--observe" in args else ["--observe", "phase"]
     result = invoke(
-        "synthesize", tmp_path / "m.prism", "--props", tmp_path / "p.pctl", *decision, *observe, *args,
-        "--population", "4", "--generations", "1", "--workers", "1", "--out", tmp_path / "out",
+        "synthesize",
+        tmp_path / "m.prism",
+        "--props",
+        tmp_path / "p.pctl",
+        *decision,
+        *observe,
+        *args,
+        "--population",
+        "4",
+        "--generations",
+        "1",
+        "--workers",
+        "1",
+        "--out",
+        tmp_path / "out",
     )
     _error(result, message)
 
@@ -142,13 +229,33 @@ def test_missing_files_and_existing_output(files):
     _error(invoke("augment", files / "nope.prism", "--decision", "c=1..3", "--observe", "phase"), "model file")
     (files / "taken.prism").write_text("x")
     _error(
-        invoke("augment", files / "server.prism", "--decision", "c=1..3", "--observe", "phase", "--out", files / "taken.prism"),
+        invoke(
+            "augment",
+            files / "server.prism",
+            "--decision",
+            "c=1..3",
+            "--observe",
+            "phase",
+            "--out",
+            files / "taken.prism",
+        ),
         "exists; choose another --out or add --force",
     )
     (files / "busy").mkdir()
     (files / "busy" / "keep").write_text("x")
     _error(
-        invoke("synthesize", files / "server.prism", "--props", files / "server.pctl", "--decision", "c=1..3", "--observe", "phase", "--out", files / "busy"),
+        invoke(
+            "synthesize",
+            files / "server.prism",
+            "--props",
+            files / "server.pctl",
+            "--decision",
+            "c=1..3",
+            "--observe",
+            "phase",
+            "--out",
+            files / "busy",
+        ),
         "exists and is not empty",
     )
 
@@ -171,35 +278,71 @@ def test_a_division_by_zero_is_an_error_not_a_crash(tmp_path, old, new, message)
 
 
 MUTATIONS = [
-    ("delete", None), ("duplicate", None), ("swap", None), ("insert", "("), ("insert", ";"), ("insert", "'"),
-    ("insert", "c"), ("insert", "]"), ("insert", "step"), ("insert", "-"), ("insert", "\n"), ("insert", "1/0"),
+    ("delete", None),
+    ("duplicate", None),
+    ("swap", None),
+    ("insert", "("),
+    ("insert", ";"),
+    ("insert", "'"),
+    ("insert", "c"),
+    ("insert", "]"),
+    ("insert", "step"),
+    ("insert", "-"),
+    ("insert", "\n"),
+    ("insert", "1/0"),
 ]
 
 
-@settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=60,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 @given(
     position=st.integers(0, len(USER) - 1),
     mutation=st.sampled_from(MUTATIONS),
-    decision=st.sampled_from(["c=1..3", "c=0..2", "c=3..1", "c=1..3:threshold", "c=1..", "k=1..3", "c=-2..2", "c=1..3:often"]),
+    decision=st.sampled_from(
+        ["c=1..3", "c=0..2", "c=3..1", "c=1..3:threshold", "c=1..", "k=1..3", "c=-2..2", "c=1..3:often"]
+    ),
     observe=st.sampled_from(["phase", "h,phase", "step", "nothing", "", "phase,phase"]),
-    props=st.sampled_from([PROPS, PROPS.replace("min", "max"), "P=? [F h=0]\n", 'R{"cost"}=? [C]\n// name: x, min\n', "junk\n"]),
+    props=st.sampled_from(
+        [PROPS, PROPS.replace("min", "max"), "P=? [F h=0]\n", 'R{"cost"}=? [C]\n// name: x, min\n', "junk\n"]
+    ),
 )
 def test_fuzz_no_input_ends_in_a_traceback(tmp_path, position, mutation, decision, observe, props):
     kind, text = mutation
     if kind == "delete":
-        model = USER[:position] + USER[position + 1:]
+        model = USER[:position] + USER[position + 1 :]
     elif kind == "duplicate":
         model = USER[:position] + USER[position] + USER[position:]
     elif kind == "swap":
-        model = USER[:position] + USER[position + 1:position + 2] + USER[position:position + 1] + USER[position + 2:]
+        model = (
+            USER[:position] + USER[position + 1 : position + 2] + USER[position : position + 1] + USER[position + 2 :]
+        )
     else:
         model = USER[:position] + text + USER[position:]
     (tmp_path / "m.prism").write_text(model)
     (tmp_path / "p.pctl").write_text(props)
     out = tmp_path / f"out{position}"
     result = invoke(
-        "synthesize", tmp_path / "m.prism", "--props", tmp_path / "p.pctl", "--decision", decision, "--observe", observe,
-        "--population", "4", "--generations", "1", "--workers", "1", "--out", out, "--force",
+        "synthesize",
+        tmp_path / "m.prism",
+        "--props",
+        tmp_path / "p.pctl",
+        "--decision",
+        decision,
+        "--observe",
+        observe,
+        "--population",
+        "4",
+        "--generations",
+        "1",
+        "--workers",
+        "1",
+        "--out",
+        out,
+        "--force",
     )
     assert result.exit_code in (0, 2), (model, decision, observe, props, result.stderr, result.exception)
     if result.exit_code == 2:

@@ -13,7 +13,7 @@ is one JSON document and nothing else.
 
 from __future__ import annotations
 
-from parley_core.cli import case_studies, synthesis, controllers, evaluation, experiment  # noqa: F401, I001  (they register commands, in this order)
+from parley_core.cli import case_studies, controllers, evaluation, experiment, synthesis  # noqa: F401, I001  (they register commands, in this order)
 from parley_core.cli.app import app
 
 

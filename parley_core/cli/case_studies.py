@@ -20,7 +20,7 @@ def list_command() -> None:
     table.add_column("description")
     table.add_column("plugin", style="dim")
     for name in found.names:
-        table.add_row(name, found.case_studies[name].description, found.providers[name])
+        table.add_row(name, found.case_studies[name].description, found.provider(name))
     Console().print(table)
 
 

@@ -25,8 +25,12 @@ def select_command(
     prefer: Annotated[
         str | None, typer.Option(help="Take the best policy on this objective (among those meeting the constraints).")
     ] = None,
-    knee: Annotated[bool, typer.Option("--knee", help="Take the knee point (the default when --prefer is not given).")] = False,
-    out: Annotated[Path | None, typer.Option(help="Controller file to write (default: RUN_DIR/controller.json).")] = None,
+    knee: Annotated[
+        bool, typer.Option("--knee", help="Take the knee point (the default when --prefer is not given).")
+    ] = False,
+    out: Annotated[
+        Path | None, typer.Option(help="Controller file to write (default: RUN_DIR/controller.json).")
+    ] = None,
     json_: JsonOption = False,
 ) -> None:
     """Pick one policy from a front (best on an objective under constraints, or the knee) and write it as a controller."""
@@ -51,12 +55,19 @@ def select_command(
 @user_errors
 def simulate_command(
     target: Annotated[
-        Path, typer.Argument(help="A run directory (of `parley run` or `parley synthesize`), or your PRISM model with --props.")
+        Path,
+        typer.Argument(
+            help="A run directory (of `parley run` or `parley synthesize`), or your PRISM model with --props."
+        ),
     ],
-    policy: Annotated[Path, typer.Option(help="A controller file (`parley select`) or a policies CSV holding one policy.")],
+    policy: Annotated[
+        Path, typer.Option(help="A controller file (`parley select`) or a policies CSV holding one policy.")
+    ],
     props: Annotated[
         Path | None,
-        typer.Option(help="With a PRISM model: the properties to simulate, each after a '// name: NAME, max|min' comment."),
+        typer.Option(
+            help="With a PRISM model: the properties to simulate, each after a '// name: NAME, max|min' comment."
+        ),
     ] = None,
     episodes: Annotated[int, typer.Option(min=1, help="Simulated runs.")] = 10_000,
     seed: Annotated[int, typer.Option(help="Seed of Storm's simulator.")] = 1,
@@ -97,7 +108,9 @@ def simulate_command(
         if isinstance(r, str):
             table.add_row(r, "", "", "", "")
         else:
-            table.add_row(r.objective, fmt(r.mean), f"{fmt(r.low)} .. {fmt(r.high)}", fmt(r.checked), "yes" if r.agrees else "NO")
+            table.add_row(
+                r.objective, fmt(r.mean), f"{fmt(r.low)} .. {fmt(r.high)}", fmt(r.checked), "yes" if r.agrees else "NO"
+            )
     Console().print(table)
 
 
@@ -105,8 +118,9 @@ def _simulated_family(target: Path, policy: Path, props: Path | None):
     """The family a simulation runs on: a run directory's, or a user's model augmented
     with the controller file's services and observation."""
     from parley_core import rundir
+    from parley_core.simulate import family_for_controller
     from parley_core.urc import URC
-    from parley_core.usermodel import family_for_simulation, family_of_run
+    from parley_core.usermodel import family_of_run
 
     if target.is_dir():
         if props is not None:
@@ -118,4 +132,4 @@ def _simulated_family(target: Path, policy: Path, props: Path | None):
         raise OptionError(f"simulating the model {target} needs --props FILE.pctl (the objectives to estimate)")
     if policy.suffix != ".json":
         raise OptionError(f"with a PRISM model, --policy must be a controller file of `parley select` (got {policy})")
-    return family_for_simulation(target, URC.load(policy), props)
+    return family_for_controller(target, URC.load(policy), props)

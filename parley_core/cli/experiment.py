@@ -33,18 +33,24 @@ NameOption = Annotated[str | None, typer.Option(help="Campaign name (default: th
 def experiment_run(
     case: CaseArgument,
     store: Annotated[Path, typer.Option(help="SQLite results file (created if missing; resumed if present).")],
-    reps: Annotated[int, typer.Option(min=1, help="Repetitions per instance (seeds first-seed, first-seed+1, ...).")] = 10,
+    reps: Annotated[
+        int, typer.Option(min=1, help="Repetitions per instance (seeds first-seed, first-seed+1, ...).")
+    ] = 10,
     grid: Annotated[
-        list[str] | None, typer.Option("--grid", metavar="KEY=V1,V2,...", help="Instances: the product of these option values.")
+        list[str] | None,
+        typer.Option("--grid", metavar="KEY=V1,V2,...", help="Instances: the product of these option values."),
     ] = None,
     instances: Annotated[
         str | None, typer.Option(help="Instances: one per file of a directory or glob (e.g. 'maps/map_*.csv').")
     ] = None,
     instance_option: Annotated[
-        str | None, typer.Option(help="The option that receives each --instances file (default: the first file option).")
+        str | None,
+        typer.Option(help="The option that receives each --instances file (default: the first file option)."),
     ] = None,
     set_: SetOption = None,
-    name: Annotated[str | None, typer.Option(help="Campaign name inside the store (default: the case study's name).")] = None,
+    name: Annotated[
+        str | None, typer.Option(help="Campaign name inside the store (default: the case study's name).")
+    ] = None,
     population: Annotated[int, typer.Option(min=2, help="NSGA-II population size.")] = POPULATION,
     generations: GenerationsOption = None,
     max_evaluations: MaxEvaluationsOption = None,
@@ -52,12 +58,17 @@ def experiment_run(
     first_seed: Annotated[int, typer.Option(help="Seed of the first repetition.")] = 1,
     evaluator: EvaluatorOption = EvaluatorKind.QUOTIENT.value,
     verify: Annotated[
-        bool, typer.Option(help="Re-check every front policy with Storm (--no-verify keeps the search's values, and says so).")
+        bool,
+        typer.Option(
+            help="Re-check every front policy with Storm (--no-verify keeps the search's values, and says so)."
+        ),
     ] = True,
     workers: Annotated[
         int | None, typer.Option("--workers", "-j", min=1, help="Runs at once on this machine (default: one per core).")
     ] = None,
-    scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address (e.g. tcp://host:8786) to run on a cluster.")] = None,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Dask scheduler address (e.g. tcp://host:8786) to run on a cluster.")
+    ] = None,
 ) -> None:
     """Run a campaign; rerunning the same command resumes it, skipping finished runs."""
     from parley_core.experiment.campaign import Budget, describe, execute, instances_from, plan
@@ -65,7 +76,11 @@ def experiment_run(
 
     study = case_study(case)
     limits = search_settings(
-        population=population, generations=generations, max_evaluations=max_evaluations, time_limit=time_limit, seed=first_seed
+        population=population,
+        generations=generations,
+        max_evaluations=max_evaluations,
+        time_limit=time_limit,
+        seed=first_seed,
     )
     budget = Budget(
         population=limits.population,
@@ -106,10 +121,14 @@ def _existing(store: Path) -> None:
 def experiment_verify(
     store: StoreOption,
     name: NameOption = None,
-    workers: Annotated[int | None, typer.Option("--workers", "-j", min=1, help="Processes at once (default: one per core).")] = None,
+    workers: Annotated[
+        int | None, typer.Option("--workers", "-j", min=1, help="Processes at once (default: one per core).")
+    ] = None,
     repetition: Annotated[
         list[int] | None,
-        typer.Option("--repetition", min=0, help="Only these repetitions (repeatable), e.g. 0 for a sample of one per instance."),
+        typer.Option(
+            "--repetition", min=0, help="Only these repetitions (repeatable), e.g. 0 for a sample of one per instance."
+        ),
     ] = None,
 ) -> None:
     """Re-check with Storm every stored front not yet checked (runs of --no-verify); resumable."""
@@ -125,7 +144,12 @@ def experiment_verify(
             task = progress.add_task(f"verify {campaign}", total=len(selected))
             progress.update(task, completed=sum(r.verified for r in selected))
             now, before, worst = verify_stored(
-                results, campaign, case_name, workers=workers, repetitions=wanted, progress=lambda n: progress.advance(task, n)
+                results,
+                campaign,
+                case_name,
+                workers=workers,
+                repetitions=wanted,
+                progress=lambda n: progress.advance(task, n),
             )
     Console().print(
         f"campaign {campaign}: {now} fronts re-checked by Storm now, {before} already were; "
@@ -141,14 +165,18 @@ def experiment_report(
     name: NameOption = None,
     setting: Annotated[
         list[str] | None,
-        typer.Option("--setting", metavar="B1,B2", help="Requirement setting: worst acceptable value per objective (repeatable)."),
+        typer.Option(
+            "--setting", metavar="B1,B2", help="Requirement setting: worst acceptable value per objective (repeatable)."
+        ),
     ] = None,
     published: Annotated[
         Path | None, typer.Option(help="Directory of published fronts ({instance}_rep{R}.front.tsv) to compare with.")
     ] = None,
     figure_setting: Annotated[
         str | None,
-        typer.Option(metavar="B1,B2", help="Setting of the box plots (default: the case study's, if reported, else the first)."),
+        typer.Option(
+            metavar="B1,B2", help="Setting of the box plots (default: the case study's, if reported, else the first)."
+        ),
     ] = None,
     force: Annotated[bool, typer.Option(help="Replace the files of an existing --out directory.")] = False,
 ) -> None:
@@ -185,11 +213,16 @@ def experiment_report(
 @user_errors
 def experiment_scalability(
     case: CaseArgument,
-    sizes: Annotated[str, typer.Option(help="Comma-separated values of the size option, e.g. 5,10,15,20,30,50.")] = "5,10,15,20,30,50",
+    sizes: Annotated[
+        str, typer.Option(help="Comma-separated values of the size option, e.g. 5,10,15,20,30,50.")
+    ] = "5,10,15,20,30,50",
     option: Annotated[str, typer.Option(help="The option the sizes go to.")] = "size",
     set_: SetOption = None,
     storm_policies: Annotated[
-        int, typer.Option(min=1, help="Policies timed with the Storm evaluator per size (a 50x50 robot_grid policy takes about 30 s).")
+        int,
+        typer.Option(
+            min=1, help="Policies timed with the Storm evaluator per size (a 50x50 robot_grid policy takes about 30 s)."
+        ),
     ] = 10,
     out: Annotated[Path | None, typer.Option(help="Directory for table3.md and table3.json.")] = None,
 ) -> None:
@@ -204,7 +237,12 @@ def experiment_scalability(
     with progress_bars() as progress:
         task = progress.add_task("scalability", total=len(values))
         table = write_table3(
-            study, values, option, set_ or [], storm_policies=storm_policies, out=out,
+            study,
+            values,
+            option,
+            set_ or [],
+            storm_policies=storm_policies,
+            out=out,
             progress=lambda n: progress.advance(task, n),
         )
     Console().print(table)

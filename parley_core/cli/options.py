@@ -12,7 +12,9 @@ from parley_core.search import default
 
 SetOption = Annotated[
     list[str] | None,
-    typer.Option("--set", "-s", metavar="KEY=VALUE", help="A case-study option (repeatable); see `parley options CASE`."),
+    typer.Option(
+        "--set", "-s", metavar="KEY=VALUE", help="A case-study option (repeatable); see `parley options CASE`."
+    ),
 ]
 WorkersOption = Annotated[
     int | None, typer.Option("--workers", "-j", min=1, help="Worker processes for Storm (default: one per core).")

@@ -71,12 +71,18 @@ def synthesize_command(
     model: Annotated[Path, typer.Argument(help="A PRISM DTMC.")],
     props: Annotated[
         Path,
-        typer.Option(help="PCTL properties, each after a '// name: NAME, max|min' comment (or use --maximize/--minimize)."),
+        typer.Option(
+            help="PCTL properties, each after a '// name: NAME, max|min' comment (or use --maximize/--minimize)."
+        ),
     ],
     decision: DecisionOption,
     observe: ObserveOption,
-    maximize: Annotated[list[str] | None, typer.Option("--maximize", metavar="NAME", help="Maximize this objective.")] = None,
-    minimize: Annotated[list[str] | None, typer.Option("--minimize", metavar="NAME", help="Minimize this objective.")] = None,
+    maximize: Annotated[
+        list[str] | None, typer.Option("--maximize", metavar="NAME", help="Maximize this objective.")
+    ] = None,
+    minimize: Annotated[
+        list[str] | None, typer.Option("--minimize", metavar="NAME", help="Minimize this objective.")
+    ] = None,
     constraint: ConstraintOption = None,
     seed: SeedOption = SEED,
     population: PopulationOption = POPULATION,

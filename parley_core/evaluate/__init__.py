@@ -34,9 +34,7 @@ class EvaluatorKind(enum.Enum):
         try:
             return cls(kind)
         except ValueError:
-            raise OptionError(
-                f"unknown evaluator {kind!r}; valid: {', '.join(k.value for k in cls)}"
-            ) from None
+            raise OptionError(f"unknown evaluator {kind!r}; valid: {', '.join(k.value for k in cls)}") from None
 
 
 @runtime_checkable

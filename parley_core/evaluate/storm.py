@@ -15,7 +15,6 @@ from parley_core.model import Family
 from parley_core.prism import program as prism
 from parley_core.progress import Progress
 
-
 PRECISION = "1/1000000000000"
 """Relative precision of Storm's equation solving (1e-12)."""
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import glob
 import itertools
 import os
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from concurrent.futures import as_completed
 from pathlib import Path
 from typing import Any
@@ -73,7 +73,9 @@ def instance_label(assignments: Sequence[str]) -> str:
     return " ".join(parts) or "default"
 
 
-def instances_from(case: CaseStudy, grid: Sequence[str] = (), files: str | None = None, option: str | None = None) -> list[tuple[str, ...]]:
+def instances_from(
+    case: CaseStudy, grid: Sequence[str] = (), files: str | None = None, option: str | None = None
+) -> list[tuple[str, ...]]:
     """Instances as option assignments: the product of ``--grid KEY=V1,V2`` values, and/or one
     per file of a directory or glob (given to ``option``, by default the case study's first
     path-typed option)."""
@@ -92,7 +94,9 @@ def instances_from(case: CaseStudy, grid: Sequence[str] = (), files: str | None 
         matches = sorted(glob.glob(os.path.join(files, "*"))) if os.path.isdir(files) else sorted(glob.glob(files))
         matches = [m for m in matches if os.path.isfile(m)]
         if not matches:
-            raise OptionError(f"--instances {files!r} matches no file; give a directory or a glob such as 'maps/map_*.csv'")
+            raise OptionError(
+                f"--instances {files!r} matches no file; give a directory or a glob such as 'maps/map_*.csv'"
+            )
         axes.append([f"{option}={m}" for m in _natural(matches)])
     if not axes:
         return [()]
@@ -101,6 +105,7 @@ def instances_from(case: CaseStudy, grid: Sequence[str] = (), files: str | None 
 
 def _natural(paths: list[str]) -> list[str]:
     """Sort so that map_9 comes before map_10."""
+
     def key(path: str):
         stem = Path(path).stem
         digits = "".join(ch if ch.isdigit() else " " for ch in stem).split()
@@ -129,8 +134,13 @@ def plan(
         for repetition in range(repetitions):
             specs.append(
                 RunSpec(
-                    campaign=name, case=case.name, instance=label, assignments=combined,
-                    repetition=repetition, seed=first_seed + repetition, budget=budget,
+                    campaign=name,
+                    case=case.name,
+                    instance=label,
+                    assignments=combined,
+                    repetition=repetition,
+                    seed=first_seed + repetition,
+                    budget=budget,
                 )
             )
     labels = [s.instance for s in specs if s.repetition == 0]
@@ -229,7 +239,8 @@ def execute(
 
 def _execute_dask(todo: Sequence[RunSpec], scheduler: str, finish) -> None:
     try:
-        from dask.distributed import Client, as_completed as dask_completed
+        from dask.distributed import Client
+        from dask.distributed import as_completed as dask_completed
     except ImportError:
         raise OptionError("--scheduler needs Dask: pip install 'parley[dask]' (dask[distributed])") from None
     try:
@@ -237,7 +248,12 @@ def _execute_dask(todo: Sequence[RunSpec], scheduler: str, finish) -> None:
     except (OSError, TimeoutError) as exc:
         raise OptionError(f"cannot reach the Dask scheduler at {scheduler} ({exc}); check the address") from None
     try:
-        futures = {client.submit(run_spec, spec, pure=False, key=f"parley-{spec.campaign}-{spec.instance}-{spec.repetition}"): spec for spec in todo}
+        futures = {
+            client.submit(
+                run_spec, spec, pure=False, key=f"parley-{spec.campaign}-{spec.instance}-{spec.repetition}"
+            ): spec
+            for spec in todo
+        }
         for future in dask_completed(futures):
             spec = futures[future]
             error = future.exception()

@@ -97,13 +97,17 @@ def _gap(values: np.ndarray, directions, setting: Setting) -> float:
 def _igd(values: np.ndarray, directions, setting: Setting, ideal: np.ndarray, reference: np.ndarray) -> float:
     if len(reference) == 0:
         return float("nan")
-    return metrics.igd_plus(in_box(values, directions, setting), reference, directions, bounds=(ideal, np.array(setting)))
+    return metrics.igd_plus(
+        in_box(values, directions, setting), reference, directions, bounds=(ideal, np.array(setting))
+    )
 
 
 def published_fronts(directory: Path, instance: str, n_objectives: int) -> list[np.ndarray]:
     """Published fronts of an instance: ``{instance}_rep{R}.front.tsv`` (a header line, then one tab-separated row per policy)."""
     fronts = []
-    for path in sorted(directory.glob(f"{instance}_rep*.front.tsv"), key=lambda p: int(p.stem.split("_rep")[-1].split(".")[0])):
+    for path in sorted(
+        directory.glob(f"{instance}_rep*.front.tsv"), key=lambda p: int(p.stem.split("_rep")[-1].split(".")[0])
+    ):
         rows = [line.split("\t")[:n_objectives] for line in path.read_text().splitlines()[1:] if line.strip()]
         fronts.append(np.array(rows, dtype=float).reshape(-1, n_objectives))
     return fronts
@@ -144,16 +148,34 @@ def analyse(records: Sequence[RunRecord], settings: Sequence[Setting], published
             igd = tuple(_igd(f, directions, setting, ideal, box_front) for f in fronts)
             igd_test = compare([0.0] * len(igd), [i - base_igd for i in igd]) if len(box_front) else None
             row = dict(
-                instance=instance, setting=tuple(setting), baseline_hv=base_hv, hv=hv, hv_verdict=hv_test.verdict,
-                hv_p=hv_test.p_value, hv_a12=hv_test.a12, baseline_spread=base_sp, spread=sp,
-                spread_verdict=sp_test.verdict, spread_p=sp_test.p_value, spread_a12=sp_test.a12,
-                baseline_gap=base_gap, gap=gap, gap_verdict=gap_test.verdict,
-                baseline_igd=base_igd, igd=igd, igd_verdict=igd_test.verdict if igd_test else "same",
+                instance=instance,
+                setting=tuple(setting),
+                baseline_hv=base_hv,
+                hv=hv,
+                hv_verdict=hv_test.verdict,
+                hv_p=hv_test.p_value,
+                hv_a12=hv_test.a12,
+                baseline_spread=base_sp,
+                spread=sp,
+                spread_verdict=sp_test.verdict,
+                spread_p=sp_test.p_value,
+                spread_a12=sp_test.a12,
+                baseline_gap=base_gap,
+                gap=gap,
+                gap_verdict=gap_test.verdict,
+                baseline_igd=base_igd,
+                igd=igd,
+                igd_verdict=igd_test.verdict if igd_test else "same",
             )
             if theirs:
                 their_hv = tuple(metrics.hypervolume(f, directions, setting) for f in theirs)
                 test = compare(hv, their_hv)
-                row.update(published_hv=their_hv, published_verdict=test.verdict, published_p=test.p_value, published_a12=test.a12)
+                row.update(
+                    published_hv=their_hv,
+                    published_verdict=test.verdict,
+                    published_p=test.p_value,
+                    published_a12=test.a12,
+                )
                 row.update(published_igd=tuple(_igd(f, directions, setting, ideal, box_front) for f in theirs))
             rows.append(Row(**row))
     return rows
@@ -195,8 +217,14 @@ def table2_markdown(rows: Sequence[Row], settings: Sequence[Setting], names: Seq
 
 
 def table2_document(
-    campaign: str, case_name: str, settings_record, records: Sequence[RunRecord], rows: Sequence[Row],
-    settings: Sequence[Setting], header: Sequence[str], published: bool,
+    campaign: str,
+    case_name: str,
+    settings_record,
+    records: Sequence[RunRecord],
+    rows: Sequence[Row],
+    settings: Sequence[Setting],
+    header: Sequence[str],
+    published: bool,
 ) -> str:
     """table2.md: what the campaign holds, whose values its fronts are, and Table 2."""
     instances = {r.instance for r in records}
@@ -206,8 +234,10 @@ def table2_document(
     if len(checked) == len(records):
         provenance = f"Storm's, every front re-checked (largest difference from the search's values {worst:.1e})"
     elif checked:
-        provenance = (f"Storm's for {len(checked)} of {len(records)} runs (largest difference {worst:.1e}); the others the "
-                      "search evaluator's (`parley experiment verify` re-checks them)")
+        provenance = (
+            f"Storm's for {len(checked)} of {len(records)} runs (largest difference {worst:.1e}); the others the "
+            "search evaluator's (`parley experiment verify` re-checks them)"
+        )
     else:
         provenance = "the search evaluator's, not re-checked by Storm yet (`parley experiment verify` re-checks them)"
     return (
@@ -224,22 +254,61 @@ def table2_document(
 def rows_csv(rows: Sequence[Row], names: Sequence[str]) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow([
-        "instance", *(f"bound_{n}" for n in names), "baseline_hv", "median_hv", "hv_verdict", "hv_p", "hv_a12",
-        "baseline_spread", "median_spread", "spread_verdict", "spread_p", "spread_a12",
-        "baseline_paper_spread", "median_paper_spread", "paper_spread_verdict",
-        "baseline_igd_plus", "median_igd_plus", "igd_plus_verdict", "published_median_igd_plus",
-        "published_median_hv", "published_verdict", "published_p", "published_a12",
-    ])
+    writer.writerow(
+        [
+            "instance",
+            *(f"bound_{n}" for n in names),
+            "baseline_hv",
+            "median_hv",
+            "hv_verdict",
+            "hv_p",
+            "hv_a12",
+            "baseline_spread",
+            "median_spread",
+            "spread_verdict",
+            "spread_p",
+            "spread_a12",
+            "baseline_paper_spread",
+            "median_paper_spread",
+            "paper_spread_verdict",
+            "baseline_igd_plus",
+            "median_igd_plus",
+            "igd_plus_verdict",
+            "published_median_igd_plus",
+            "published_median_hv",
+            "published_verdict",
+            "published_p",
+            "published_a12",
+        ]
+    )
     for r in rows:
-        writer.writerow([
-            r.instance, *r.setting, r.baseline_hv, float(np.median(r.hv)), r.hv_verdict, r.hv_p, r.hv_a12,
-            r.baseline_spread, float(np.median(r.spread)), r.spread_verdict, r.spread_p, r.spread_a12,
-            r.baseline_gap, float(np.median(r.gap)), r.gap_verdict,
-            r.baseline_igd, float(np.median(r.igd)), r.igd_verdict, float(np.median(r.published_igd)) if r.published_igd else "",
-            float(np.median(r.published_hv)) if r.published_hv else "", r.published_verdict,
-            "" if not r.published_hv else r.published_p, "" if not r.published_hv else r.published_a12,
-        ])
+        writer.writerow(
+            [
+                r.instance,
+                *r.setting,
+                r.baseline_hv,
+                float(np.median(r.hv)),
+                r.hv_verdict,
+                r.hv_p,
+                r.hv_a12,
+                r.baseline_spread,
+                float(np.median(r.spread)),
+                r.spread_verdict,
+                r.spread_p,
+                r.spread_a12,
+                r.baseline_gap,
+                float(np.median(r.gap)),
+                r.gap_verdict,
+                r.baseline_igd,
+                float(np.median(r.igd)),
+                r.igd_verdict,
+                float(np.median(r.published_igd)) if r.published_igd else "",
+                float(np.median(r.published_hv)) if r.published_hv else "",
+                r.published_verdict,
+                "" if not r.published_hv else r.published_p,
+                "" if not r.published_hv else r.published_a12,
+            ]
+        )
     return out.getvalue()
 
 

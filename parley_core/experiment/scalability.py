@@ -121,8 +121,16 @@ def measure_isolated(case_name: str, assignments: Sequence[str], **kwargs: Any) 
         return pool.submit(_measure_by_name, case_name, list(assignments), kwargs).result()
 
 
-def write_table3(case: CaseStudy, sizes: Sequence[int], option: str, fixed: Sequence[str], *, storm_policies: int,
-                 out: Path | None = None, progress: Progress | None = None) -> str:
+def write_table3(
+    case: CaseStudy,
+    sizes: Sequence[int],
+    option: str,
+    fixed: Sequence[str],
+    *,
+    storm_policies: int,
+    out: Path | None = None,
+    progress: Progress | None = None,
+) -> str:
     """Measure every size in a fresh process; write table3.md and table3.json into ``out``
     (if given); returns the table."""
     for size in sizes:

@@ -84,7 +84,10 @@ class RunRecord:
         )
 
     def front_json(self) -> dict[str, Any]:
-        return {"policies": [list(p.values) for p in self.front.policies], "values": [list(v) for v in self.front.values]}
+        return {
+            "policies": [list(p.values) for p in self.front.policies],
+            "values": [list(v) for v in self.front.values],
+        }
 
     def baseline_json(self) -> dict[str, Any]:
         return {"names": [p.name for p in self.baseline.policies], "values": [list(v) for v in self.baseline.values]}
@@ -183,7 +186,10 @@ class Store:
                 "INSERT OR IGNORE INTO runs (campaign, instance, repetition, seed, options, objectives, front, baseline, summary, finished) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (
-                    record.campaign, record.instance, record.repetition, record.seed,
+                    record.campaign,
+                    record.instance,
+                    record.repetition,
+                    record.seed,
                     json.dumps(record.options),
                     json.dumps([o.to_json() for o in record.objectives]),
                     json.dumps(record.front_json()),

@@ -139,7 +139,9 @@ def constant_definitions(program: PrismProgram) -> dict:
     return {c.expression_variable: c.definition for c in program.substitute_constants().constants if c.defined}
 
 
-def closed_bounds(program: PrismProgram, variable, overrides: Mapping | None = None, definitions: Mapping | None = None) -> tuple:
+def closed_bounds(
+    program: PrismProgram, variable, overrides: Mapping | None = None, definitions: Mapping | None = None
+) -> tuple:
     """An integer variable's lower and upper bound with ``overrides`` (constants to
     expressions, applied first) and then the program's constant definitions substituted."""
     definitions = constant_definitions(program) if definitions is None else definitions

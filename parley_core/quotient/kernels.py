@@ -26,8 +26,24 @@ def _consistent(policy, choice_dec, choice_val, c):
 
 @njit(cache=True)
 def explore(
-    policy, initial, state_choices, choice_branches, targets, probabilities, choice_dec, choice_val,
-    state_rewards, choice_rewards, local_of, order, indptr, cols, vals, rewards_out, levels, chosen,
+    policy,
+    initial,
+    state_choices,
+    choice_branches,
+    targets,
+    probabilities,
+    choice_dec,
+    choice_val,
+    state_rewards,
+    choice_rewards,
+    local_of,
+    order,
+    indptr,
+    cols,
+    vals,
+    rewards_out,
+    levels,
+    chosen,
 ):
     """The reachable DTMC of ``policy``; returns (states, entries).
 

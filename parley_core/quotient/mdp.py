@@ -18,8 +18,8 @@ from collections.abc import Sequence
 import numpy as np
 import stormpy
 import stormpy.io as storm_io
-from stormpy.exceptions import StormError
 from attrs import field, frozen
+from stormpy.exceptions import StormError
 
 from parley_core.errors import ModelError
 from parley_core.model import SystemModel

@@ -51,9 +51,24 @@ class QuotientSolver:
     def solve(self, policy: np.ndarray) -> list[float | None]:
         q = self.q
         count, nnz = kernels.explore(
-            np.asarray(policy, dtype=np.int64), q.initial, q.state_choices, q.choice_branches, q.targets,
-            q.probabilities, q.choice_dec, q.choice_val, q.state_rewards, q.choice_rewards,
-            self.local_of, self.order, self.indptr, self.cols, self.vals, self.rewards, self.levels, self.chosen,
+            np.asarray(policy, dtype=np.int64),
+            q.initial,
+            q.state_choices,
+            q.choice_branches,
+            q.targets,
+            q.probabilities,
+            q.choice_dec,
+            q.choice_val,
+            q.state_rewards,
+            q.choice_rewards,
+            self.local_of,
+            self.order,
+            self.indptr,
+            self.cols,
+            self.vals,
+            self.rewards,
+            self.levels,
+            self.chosen,
         )
         self.last_states = count
         indptr, cols, vals = self.indptr[: count + 1], self.cols[:nnz], self.vals[:nnz]
@@ -85,7 +100,9 @@ class QuotientSolver:
         if objective.kind is KernelKind.BOUNDED:
             left, right = objective.left[order], objective.right[order]
             x = np.where(right, 1.0, 0.0)
-            x = kernels.bounded(count, indptr, cols, vals, objective.steps, x, np.zeros(count), left & ~right, self.levels)
+            x = kernels.bounded(
+                count, indptr, cols, vals, objective.steps, x, np.zeros(count), left & ~right, self.levels
+            )
             return float(x[0])
         reward = self.rewards[objective.reward, :count].copy()
         if objective.kind is KernelKind.REACH_REWARD:

@@ -76,9 +76,7 @@ def family(
     return make_family(system, prune=case.prune if prune is None else prune)
 
 
-def values(
-    family: Family, policies: Policy | Sequence[Policy] | np.ndarray, evaluator: str = "storm"
-) -> np.ndarray:
+def values(family: Family, policies: Policy | Sequence[Policy] | np.ndarray, evaluator: str = "storm") -> np.ndarray:
     """The objective values [policies, objectives] of policies of ``family``, by the Storm
     evaluator (the reference; default) or the quotient evaluator, in this process."""
     from parley_core.evaluate import make_evaluator

@@ -25,7 +25,9 @@ def _positive(_instance, attribute, value) -> None:
 
 @frozen(kw_only=True)
 class RobotGridOptions:
-    map: Path | None = field(default=None, metadata={"help": "CSV map in the paper's package format; default: generate one"})
+    map: Path | None = field(
+        default=None, metadata={"help": "CSV map in the paper's package format; default: generate one"}
+    )
     size: int = field(default=10, validator=validators.ge(2), metadata={"help": "side of a generated map"})
     seed: int = field(default=0, metadata={"help": "seed of a generated map"})
     p: float = field(
@@ -34,11 +36,17 @@ class RobotGridOptions:
         metadata={"help": "probability that a move deviates to each of the three other directions"},
     )
     horizon: int = field(
-        default=100, validator=_positive, metadata={"help": "steps of the cost objective C<=horizon (a move is 3 steps)"}
+        default=100,
+        validator=_positive,
+        metadata={"help": "steps of the cost objective C<=horizon (a move is 3 steps)"},
     )
-    max_interval: int = field(default=10, validator=_positive, metadata={"help": "largest localisation interval (moves)"})
+    max_interval: int = field(
+        default=10, validator=_positive, metadata={"help": "largest localisation interval (moves)"}
+    )
     move_cost: float = field(default=1.0, validator=validators.ge(0.0), metadata={"help": "cost of a move"})
-    localisation_cost: float = field(default=5.0, validator=validators.ge(0.0), metadata={"help": "cost of a localisation"})
+    localisation_cost: float = field(
+        default=5.0, validator=validators.ge(0.0), metadata={"help": "cost of a localisation"}
+    )
 
 
 def build(options: RobotGridOptions) -> SystemModel:

@@ -64,9 +64,7 @@ def prism_model(
 ) -> str:
     """The DTMC text for ``grid`` with the movement controller ``moves``."""
     x_target, y_target = grid.target
-    crash = disjunction(
-        f"x={x} & {_one_of('y', ys)}" for x, ys in _by_column(grid.obstacles()).items()
-    )
+    crash = disjunction(f"x={x} & {_one_of('y', ys)}" for x, ys in _by_column(grid.obstacles()).items())
 
     robot_commands = [
         Command(
@@ -95,7 +93,9 @@ def prism_model(
     # One command per move and column (a guard that fails fast on xhat: Storm evaluates every
     # guard in every state). Every move must be in the Controller's alphabet, or PRISM would
     # let an unused one happen anywhere: a move no cell plans gets a command never enabled.
-    columns = _by_column(sorted(moves, key=lambda cell: (MOVES_ORDER[moves[cell]], cell)), key=lambda cell: (moves[cell], cell[0]))
+    columns = _by_column(
+        sorted(moves, key=lambda cell: (MOVES_ORDER[moves[cell]], cell)), key=lambda cell: (moves[cell], cell[0])
+    )
     controller = Module(
         name="Controller",
         commands=[
@@ -162,7 +162,6 @@ def prism_model(
         ],
     )
     return program.render()
-
 
 
 def _by_column(cells, key=lambda cell: cell[0]) -> dict:

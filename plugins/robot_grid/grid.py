@@ -96,7 +96,9 @@ def load_csv(path: Path) -> Grid:
         raise OptionError(f"map file {path} is empty; write one comma-separated row of weights per line")
     widths = {len(r) for r in rows}
     if len(widths) != 1:
-        raise OptionError(f"map file {path}: rows have different lengths {sorted(widths)}; give every row the same number of cells")
+        raise OptionError(
+            f"map file {path}: rows have different lengths {sorted(widths)}; give every row the same number of cells"
+        )
     if len(rows) < 2 or len(rows[0]) < 2:
         raise OptionError(f"map file {path}: the map must be at least 2x2")
     return check(from_rows(rows, source=str(path)))
@@ -106,7 +108,9 @@ def check(grid: Grid) -> Grid:
     """Raise OptionError unless start and target are free and joined by a path of free cells."""
     for name, (x, y) in (("start", grid.start), ("target", grid.target)):
         if grid.is_obstacle(x, y):
-            raise OptionError(f"map {grid.source}: the {name} cell ({x},{y}) is an obstacle; free it (weight < {OBSTACLE})")
+            raise OptionError(
+                f"map {grid.source}: the {name} cell ({x},{y}) is an obstacle; free it (weight < {OBSTACLE})"
+            )
     if not has_path(grid):
         raise OptionError(
             f"map {grid.source} has no obstacle-free path from the start {grid.start} to the target {grid.target}; "

@@ -10,12 +10,13 @@ from matplotlib.colors import Normalize
 from matplotlib.patches import Rectangle
 
 from parley_core.plotting import figure, save
-
 from parley_plugins.robot_grid.grid import Grid
 from parley_plugins.robot_grid.planner import MOVES
 
 
-def draw_policy(grid: Grid, moves: dict[tuple[int, int], str], intervals: dict[tuple[int, int], int], path: Path) -> None:
+def draw_policy(
+    grid: Grid, moves: dict[tuple[int, int], str], intervals: dict[tuple[int, int], int], path: Path
+) -> None:
     size = max(4.0, 0.55 * max(grid.width, grid.height))
     fig, ax = figure(size * grid.width / max(grid.width, grid.height) + 1.2, size)
     shown = [v for v in intervals.values()]
@@ -35,7 +36,9 @@ def draw_policy(grid: Grid, moves: dict[tuple[int, int], str], intervals: dict[t
         if (x, y) in moves:
             dx, dy = MOVES[moves[(x, y)]]
             ax.annotate(
-                "", xy=(x + 0.3 * dx, y - 0.22 + 0.3 * dy), xytext=(x - 0.3 * dx, y - 0.22 - 0.3 * dy),
+                "",
+                xy=(x + 0.3 * dx, y - 0.22 + 0.3 * dy),
+                xytext=(x - 0.3 * dx, y - 0.22 - 0.3 * dy),
                 arrowprops={"arrowstyle": "->", "color": "firebrick", "lw": 1.0},
             )
     for (x, y), mark in ((grid.start, "S"), (grid.target, "T")):

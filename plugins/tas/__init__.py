@@ -16,7 +16,17 @@ from pathlib import Path
 
 from attrs import field, frozen, validators
 
-from parley_core import Baseline, CaseStudy, DecisionKind, Direction, Objective, OptionError, Service, SystemModel, hookimpl
+from parley_core import (
+    Baseline,
+    CaseStudy,
+    DecisionKind,
+    Direction,
+    Objective,
+    OptionError,
+    Service,
+    SystemModel,
+    hookimpl,
+)
 from parley_plugins.tas.generator import PROVIDERS, Scenario, prism_model
 
 _probability = [validators.ge(0.0), validators.le(1.0)]
@@ -52,10 +62,14 @@ class TasOptions:
         MAS1.failure_rate, "failure rate of the primary provider (MAS1) at normal load", _probability
     )
     primary_failure_peak: float = _option(
-        2 * MAS1.failure_rate, "failure rate of the primary provider at peak load (assumed: twice the table's)", _probability
+        2 * MAS1.failure_rate,
+        "failure rate of the primary provider at peak load (assumed: twice the table's)",
+        _probability,
     )
     p_vital: float = _option(
-        0.75, "probability that an execution analyses vital parameters, else it is a panic-button alarm (TAS: 0.75)", _probability
+        0.75,
+        "probability that an execution analyses vital parameters, else it is a panic-button alarm (TAS: 0.75)",
+        _probability,
     )
     p_alarm: float = _option(1 / 3, "probability that an analysis asks for an alarm (TAS: 1/3)", _probability)
     p_drug: float = _option(1 / 3, "probability that an analysis asks for a drug change (TAS: 1/3)", _probability)

@@ -192,13 +192,19 @@ def prism_model(s: Scenario) -> str:
             Command(
                 action="analyse",
                 guard=f"req={ANALYSE}",
-                updates=[*_on_success("(1-fPrimary)", results), Update(probability="fPrimary", assignments={"req": FAILOVER})],
+                updates=[
+                    *_on_success("(1-fPrimary)", results),
+                    Update(probability="fPrimary", assignments={"req": FAILOVER}),
+                ],
             ),
             Command(action="no_analysis", guard=f"req!={ANALYSE}"),
             Command(
                 action="backup",
                 guard=f"req={FAILOVER} & useBackup",
-                updates=[*_on_success("(1-fBackup)", results), Update(probability="fBackup", assignments={"req": FAILED})],
+                updates=[
+                    *_on_success("(1-fBackup)", results),
+                    Update(probability="fBackup", assignments={"req": FAILED}),
+                ],
             ),
             Command(
                 action="alternative",
@@ -235,7 +241,9 @@ def prism_model(s: Scenario) -> str:
     ]
     turn = Module(
         name="Turn",
-        variables=[Variable(name="t", low=0, high=STEPS_PER_ROUND - 1, init=0, comment="step of the current execution")],
+        variables=[
+            Variable(name="t", low=0, high=STEPS_PER_ROUND - 1, init=0, comment="step of the current execution")
+        ],
         commands=[
             Command(action=action, guard=f"t={t}", updates=[Update(assignments={"t": str((t + 1) % STEPS_PER_ROUND)})])
             for t, actions in turns
@@ -258,15 +266,29 @@ def prism_model(s: Scenario) -> str:
         Constant(name="pStay", type="double", value="1-pDegrade-pRecover"),
         Constant(name="pPeakStart", type="double", value=s.peak_start, comment="per execution: normal -> peak load"),
         Constant(name="pPeakEnd", type="double", value=s.peak_end, comment="per execution: peak -> normal load"),
-        Constant(name="fPrimaryNormal", type="double", value=s.primary_failure, comment=f"{roles.primary.name} at normal load"),
-        Constant(name="fPrimaryPeak", type="double", value=s.primary_failure_peak, comment=f"{roles.primary.name} at peak load"),
-        Constant(name="fAlternative", type="double", value=roles.alternative.failure_rate, comment=roles.alternative.name),
+        Constant(
+            name="fPrimaryNormal",
+            type="double",
+            value=s.primary_failure,
+            comment=f"{roles.primary.name} at normal load",
+        ),
+        Constant(
+            name="fPrimaryPeak",
+            type="double",
+            value=s.primary_failure_peak,
+            comment=f"{roles.primary.name} at peak load",
+        ),
+        Constant(
+            name="fAlternative", type="double", value=roles.alternative.failure_rate, comment=roles.alternative.name
+        ),
         Constant(name="fAlarm", type="double", value=roles.alarm.failure_rate, comment=roles.alarm.name),
         Constant(name="fDrug", type="double", value=roles.drug.failure_rate, comment=roles.drug.name),
         Constant(name="pVital", type="double", value=s.p_vital, comment="vital parameters (else: panic button)"),
         Constant(name="pResultAlarm", type="double", value=s.p_alarm, comment="analysis result: send an alarm"),
         Constant(name="pResultDrug", type="double", value=s.p_drug, comment="analysis result: change the drug"),
-        Constant(name="pResultDose", type="double", value=s.p_dose, comment="analysis result: change the dose (the rest: ok)"),
+        Constant(
+            name="pResultDose", type="double", value=s.p_dose, comment="analysis result: change the dose (the rest: ok)"
+        ),
         *(
             Constant(name=f"cost{part}", type="double", value=value)
             for part, value in (

@@ -9,7 +9,6 @@ from matplotlib.colors import Normalize
 from matplotlib.patches import Rectangle
 
 from parley_core.plotting import figure, save
-
 from parley_plugins.tas.generator import Scenario
 
 
@@ -22,7 +21,9 @@ def draw_policy(s: Scenario, intervals: dict[tuple[int, int], int], path: Path) 
     norm = Normalize(vmin=1, vmax=never)
     for (level, load), value in intervals.items():
         ax.add_patch(Rectangle((level - 0.5, load - 0.5), 1, 1, color=cmap(norm(value)), alpha=0.6))
-        ax.text(level, load, "never" if value >= never else str(value), ha="center", va="center", fontsize=11, weight="bold")
+        ax.text(
+            level, load, "never" if value >= never else str(value), ha="center", va="center", fontsize=11, weight="bold"
+        )
     ax.set_xlim(-0.5, levels - 0.5)
     ax.set_ylim(-0.5, 1.5)
     ax.set_xticks(range(levels))

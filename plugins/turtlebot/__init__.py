@@ -17,7 +17,17 @@ from pathlib import Path
 import attrs
 from attrs import field, frozen, validators
 
-from parley_core import Baseline, CaseStudy, DecisionKind, Direction, Objective, OptionError, Service, SystemModel, hookimpl
+from parley_core import (
+    Baseline,
+    CaseStudy,
+    DecisionKind,
+    Direction,
+    Objective,
+    OptionError,
+    Service,
+    SystemModel,
+    hookimpl,
+)
 from parley_plugins.turtlebot import published
 from parley_plugins.turtlebot.generator import prism_model
 from parley_plugins.turtlebot.kinematics import simulate
@@ -39,32 +49,62 @@ _fraction = [validators.gt(0.0), validators.le(1.0)]
 class TurtlebotOptions:
     model: Path | None = field(
         default=None,
-        metadata={"help": "the paper's models/turtlebot/model.prism: use its Gazebo-sampled motions and controller; default: simulate"},
+        metadata={
+            "help": "the paper's models/turtlebot/model.prism: use its Gazebo-sampled motions and controller; default: simulate"
+        },
     )
     repair: bool = field(
-        default=True, metadata={"help": "with model=: read its south moves as meant (the file sends them to the top row)"}
+        default=True,
+        metadata={"help": "with model=: read its south moves as meant (the file sends them to the top row)"},
     )
     size: int = field(default=7, validator=validators.ge(2), metadata={"help": "cells per side (simulated motions)"})
     start: str = field(default="1:0", metadata={"help": "start cell X:Y (simulated motions)"})
     target: str = field(default="3:5", metadata={"help": "target cell X:Y (simulated motions)"})
     obstacles: str = field(default=PAPER_OBSTACLES, metadata={"help": "obstacle cells X:Y,X:Y,... (simulated motions)"})
-    left_wheel: float = field(default=0.99, validator=_fraction, metadata={"help": "left wheel power relative to the right one"})
-    heading_noise: float = field(default=8.0, validator=validators.ge(0.0), metadata={"help": "heading error, standard deviation in degrees"})
-    turn_noise: float = field(default=5.0, validator=validators.ge(0.0), metadata={"help": "extra heading error per quarter turn, degrees"})
-    distance_noise: float = field(
-        default=0.05, validator=validators.ge(0.0), metadata={"help": "error of a move's length, relative standard deviation"}
+    left_wheel: float = field(
+        default=0.99, validator=_fraction, metadata={"help": "left wheel power relative to the right one"}
     )
-    samples: int = field(default=1000, validator=_positive, metadata={"help": "Monte Carlo draws per cell, heading and move"})
-    motion_seed: int = field(default=0, metadata={"help": "seed of the Monte Carlo draws of the motions (the search has its own, --seed)"})
+    heading_noise: float = field(
+        default=8.0, validator=validators.ge(0.0), metadata={"help": "heading error, standard deviation in degrees"}
+    )
+    turn_noise: float = field(
+        default=5.0, validator=validators.ge(0.0), metadata={"help": "extra heading error per quarter turn, degrees"}
+    )
+    distance_noise: float = field(
+        default=0.05,
+        validator=validators.ge(0.0),
+        metadata={"help": "error of a move's length, relative standard deviation"},
+    )
+    samples: int = field(
+        default=1000, validator=_positive, metadata={"help": "Monte Carlo draws per cell, heading and move"}
+    )
+    motion_seed: int = field(
+        default=0, metadata={"help": "seed of the Monte Carlo draws of the motions (the search has its own, --seed)"}
+    )
     max_period: int = field(default=5, validator=_positive, metadata={"help": "longest localisation period (moves)"})
     horizon: int = field(
-        default=200, validator=_positive, metadata={"help": "steps of the energy objective C<=horizon (a move is 3 steps)"}
+        default=200,
+        validator=_positive,
+        metadata={"help": "steps of the energy objective C<=horizon (a move is 3 steps)"},
     )
     move_cost: float = field(default=1.0, validator=validators.ge(0.0), metadata={"help": "energy of a move"})
-    localisation_cost: float = field(default=5.0, validator=validators.ge(0.0), metadata={"help": "energy of a localisation"})
+    localisation_cost: float = field(
+        default=5.0, validator=validators.ge(0.0), metadata={"help": "energy of a localisation"}
+    )
 
 
-SIMULATION_OPTIONS = ("size", "start", "target", "obstacles", "left_wheel", "heading_noise", "turn_noise", "distance_noise", "samples", "motion_seed")
+SIMULATION_OPTIONS = (
+    "size",
+    "start",
+    "target",
+    "obstacles",
+    "left_wheel",
+    "heading_noise",
+    "turn_noise",
+    "distance_noise",
+    "samples",
+    "motion_seed",
+)
 """The options that shape simulated motions; the paper's model file fixes all of them."""
 
 

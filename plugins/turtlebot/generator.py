@@ -139,4 +139,3 @@ def _assignments(outcome: Outcome, x: int, y: int) -> dict[str, str]:
 def _order(key: tuple[int, int, int, str]) -> tuple:
     x, y, heading, move = key
     return (HEADINGS.index(move), x, y, heading)
-

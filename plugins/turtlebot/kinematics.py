@@ -64,7 +64,10 @@ def simulate(
             for heading, heading_name in enumerate(HEADINGS):
                 for command in HEADINGS:
                     start = np.column_stack(
-                        [(c + rng.uniform(margin, cell_length - margin, samples) / cell_length) * cell_length for c in (x, y)]
+                        [
+                            (c + rng.uniform(margin, cell_length - margin, samples) / cell_length) * cell_length
+                            for c in (x, y)
+                        ]
                     )
                     facing = ANGLE[heading_name] + rng.normal(0.0, math.radians(heading_noise), samples)
                     turned = np.abs(np.angle(np.exp(1j * (ANGLE[command] - facing))))

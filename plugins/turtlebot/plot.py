@@ -14,7 +14,6 @@ from matplotlib.colors import Normalize
 from matplotlib.patches import Polygon, Rectangle
 
 from parley_core.plotting import figure, save
-
 from parley_plugins.turtlebot.world import STEP, World
 
 # Triangle corners (relative to the cell centre) and label offset, per heading number.
@@ -40,13 +39,19 @@ def draw_policy(world: World, periods: dict[tuple[int, int, int], int], path: Pa
                 value = periods.get((x, y, heading))
                 if value is None:
                     continue
-                ax.add_patch(Polygon([(x + cx, y + cy) for cx, cy in corners], color=cmap(norm(value)), alpha=0.6, lw=0.3, ec="white"))
+                ax.add_patch(
+                    Polygon(
+                        [(x + cx, y + cy) for cx, cy in corners], color=cmap(norm(value)), alpha=0.6, lw=0.3, ec="white"
+                    )
+                )
                 ax.text(x + lx, y + ly, str(value), ha="center", va="center", fontsize=7)
             move = world.plan.get((x, y))
             if move is not None:
                 dx, dy = STEP[move]
                 ax.annotate(
-                    "", xy=(x + 0.18 * dx, y + 0.18 * dy), xytext=(x - 0.18 * dx, y - 0.18 * dy),
+                    "",
+                    xy=(x + 0.18 * dx, y + 0.18 * dy),
+                    xytext=(x - 0.18 * dx, y - 0.18 * dy),
                     arrowprops={"arrowstyle": "->", "color": "firebrick", "lw": 1.2},
                 )
     for (x, y), mark in ((world.start, "S"), (world.target, "T")):

@@ -63,10 +63,14 @@ def parse(text: str, *, source: str = "published model", repair: bool = True) ->
                 f"(directionhat={estimate} differs); parley's turtlebot reads only tables that do not"
             )
     if not by_key:
-        raise OptionError(f"{source} has no motion commands like `[north] (ready=1) & (x=..) & (y=..) & (direction=..) & (directionhat=..) -> ...`")
+        raise OptionError(
+            f"{source} has no motion commands like `[north] (ready=1) & (x=..) & (y=..) & (direction=..) & (directionhat=..) -> ...`"
+        )
     plan = {(int(x), int(y)): move for move, x, y in _PLAN.findall(text)}
     if not plan:
-        raise OptionError(f"{source} has no movement controller commands like `[east] (xhat=..) & (yhat=..) & (crashed=0) & (out=0) -> true;`")
+        raise OptionError(
+            f"{source} has no movement controller commands like `[east] (xhat=..) & (yhat=..) & (crashed=0) & (out=0) -> true;`"
+        )
     size = n + 1
     target = (constants["targetX"], constants["targetY"])
     known = {(x, y) for x, y, _, _ in by_key}
@@ -86,7 +90,9 @@ def _outcomes(body: str, x: int, y: int, n: int, repair: bool, source: str) -> t
     for part in _UPDATE_SPLIT.split(body):
         probability, sep, assignments = part.partition(":")
         if not sep:
-            raise OptionError(f"{source}: cannot read the update {part.strip()!r} of cell ({x},{y}); expected P:(v'=e)&...")
+            raise OptionError(
+                f"{source}: cannot read the update {part.strip()!r} of cell ({x},{y}); expected P:(v'=e)&..."
+            )
         values = dict(_ASSIGNMENT.findall(assignments))
         if values.get("crashed") == "1":
             outcome = CRASH
@@ -118,4 +124,3 @@ def _value(expression: str, x: int, y: int, n: int, repair: bool) -> int:
     if repair and function == "max" and bound == "N":
         limit = 0  # the published generator's slip: max(N, y-1) where max(0, y-1) is meant
     return min(limit, moved) if function == "min" else max(limit, moved)
-

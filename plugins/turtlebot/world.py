@@ -86,7 +86,9 @@ def parse_cells(text: str, what: str) -> frozenset[Cell]:
                 raise ValueError
             cells.add((int(x), int(y)))
         except ValueError:
-            raise OptionError(f"{what}: {item!r} is not a cell; write cells as X:Y separated by commas, e.g. 1:2,2:2") from None
+            raise OptionError(
+                f"{what}: {item!r} is not a cell; write cells as X:Y separated by commas, e.g. 1:2,2:2"
+            ) from None
     return frozenset(cells)
 
 
@@ -95,14 +97,18 @@ def check(world: World) -> World:
     path of free cells joins them; every move of the motion table must end inside the square."""
     for name, cell in (("start", world.start), ("target", world.target)):
         if not (0 <= cell[0] < world.size and 0 <= cell[1] < world.size):
-            raise OptionError(f"the {name} cell {cell} is outside the {world.size}x{world.size} square; give a cell in 0..{world.size - 1}")
+            raise OptionError(
+                f"the {name} cell {cell} is outside the {world.size}x{world.size} square; give a cell in 0..{world.size - 1}"
+            )
         if cell in world.obstacles:
             raise OptionError(f"the {name} cell {cell} is an obstacle; remove it from the obstacles")
     if world.start == world.target:
         raise OptionError(f"start and target are the same cell {world.start}; give two different cells")
     outside = sorted(c for c in world.obstacles if not (0 <= c[0] < world.size and 0 <= c[1] < world.size))
     if outside:
-        raise OptionError(f"obstacle {outside[0]} is outside the {world.size}x{world.size} square; give cells in 0..{world.size - 1}")
+        raise OptionError(
+            f"obstacle {outside[0]} is outside the {world.size}x{world.size} square; give cells in 0..{world.size - 1}"
+        )
     if world.start not in shortest_moves(world.size, world.obstacles, world.target):
         raise OptionError(
             f"no obstacle-free path joins the start {world.start} and the target {world.target}; move or remove obstacles"

@@ -74,9 +74,7 @@ class WebIdsOptions:
         validator=[validators.ge(0), validators.le(KNOWN)],
         metadata={"help": f"the controller restores A when the estimate reaches this (0..{KNOWN})"},
     )
-    scan_cost: float = field(
-        default=25.0, converter=float, validator=_cost, metadata={"help": "cost of one scan of A"}
-    )
+    scan_cost: float = field(default=25.0, converter=float, validator=_cost, metadata={"help": "cost of one scan of A"})
     breach_cost: float = field(
         default=500.0, converter=float, validator=_cost, metadata={"help": "cost of a round with B compromised"}
     )

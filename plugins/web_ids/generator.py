@@ -199,12 +199,21 @@ def prism_model(
             f"The URC scans A when the IDS's estimate reaches th (0: always, {MAX_THRESHOLD}: never)."
         ),
         constants=[
-            Constant(name="attackA", type="double", value=float(attack_a), comment="P(a clean A is compromised) per round"),
-            Constant(name="attackB", type="double", value=float(attack_b), comment="P(B is compromised from a compromised A) per round"),
+            Constant(
+                name="attackA", type="double", value=float(attack_a), comment="P(a clean A is compromised) per round"
+            ),
+            Constant(
+                name="attackB",
+                type="double",
+                value=float(attack_b),
+                comment="P(B is compromised from a compromised A) per round",
+            ),
             Constant(name="stale", type="double", value=float(stale), comment="P(the IDS's rules are stale) per round"),
             Constant(name="restoreAt", value=restore_at, comment="the controller restores A when ahat >= restoreAt"),
             Constant(name="scanCost", type="double", value=float(scan_cost)),
-            Constant(name="breachCost", type="double", value=float(breach_cost), comment="per round with B compromised"),
+            Constant(
+                name="breachCost", type="double", value=float(breach_cost), comment="per round with B compromised"
+            ),
             Constant(name="th", comment=f"scan A when ahat >= th, 0..{MAX_THRESHOLD}"),
         ],
         modules=[servers, clock, ids, knowledge, controller, round_],

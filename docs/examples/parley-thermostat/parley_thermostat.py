@@ -7,14 +7,26 @@ calibration (cost 1) sets est to the true temperature; it runs once ``step`` rea
 constant ``c``. The URC chooses c per estimated level.
 
 Install it with ``pip install docs/examples/parley-thermostat``; then ``parley list`` shows
-``thermostat`` and ``parley run thermostat`` synthesises its URC.
+``thermostat`` and ``parley run thermostat`` synthesizes its URC. Its tests
+(``tests/test_thermostat.py``) run parley's conformance suite on it and check its values.
 """
 
 from __future__ import annotations
 
-from attrs import field, frozen, validators
+from attrs import frozen, validators
 
-from parley_core import Baseline, CaseStudy, DecisionKind, Direction, Objective, Service, SystemModel, hookimpl
+from parley_core import (
+    Baseline,
+    CaseStudy,
+    DecisionKind,
+    Direction,
+    Objective,
+    Service,
+    SystemModel,
+    hookimpl,
+    option,
+    positive,
+)
 from parley_core.prism.writer import (
     Command,
     Constant,
@@ -31,9 +43,11 @@ from parley_core.prism.writer import (
 
 @frozen(kw_only=True)
 class ThermostatOptions:
-    drift: float = field(default=0.15, validator=[validators.ge(0.0), validators.le(0.5)], metadata={"help": "probability of drifting up, and of drifting down, per round"})
-    rounds: int = field(default=20, validator=validators.ge(1), metadata={"help": "rounds the objectives look at"})
-    max_interval: int = field(default=4, validator=validators.ge(1), metadata={"help": "largest calibration interval"})
+    drift: float = option(
+        0.15, "probability of drifting up, and of drifting down, per round", validators.ge(0.0), validators.le(0.5)
+    )
+    rounds: int = option(20, "rounds the objectives look at", positive)
+    max_interval: int = option(4, "largest calibration interval", positive)
 
 
 def build(options: ThermostatOptions) -> SystemModel:
@@ -61,7 +75,11 @@ def build(options: ThermostatOptions) -> SystemModel:
         ],
         commands=[
             act,
-            Command(action="calibrate", guard="t=1 & step>=c", updates=[Update(assignments={"est": "temp", "step": "1", "t": "0"})]),
+            Command(
+                action="calibrate",
+                guard="t=1 & step>=c",
+                updates=[Update(assignments={"est": "temp", "step": "1", "t": "0"})],
+            ),
             Command(action="skip", guard="t=1 & step<c", updates=[Update(assignments={"step": "step+1", "t": "0"})]),
         ],
     )
@@ -82,13 +100,15 @@ def build(options: ThermostatOptions) -> SystemModel:
         name="thermostat",
         description="room whose thermometer drifts",
         prism=text,
-        services=[Service(name="calibration", constant="c", kind=DecisionKind.FREQUENCY, low=1, high=options.max_interval)],
+        services=[
+            Service(name="calibration", constant="c", kind=DecisionKind.FREQUENCY, low=1, high=options.max_interval)
+        ],
         observation=("est",),
         objectives=[
             Objective(name="discomfort", formula=f'P=? [F<={horizon} "uncomfortable"]', direction=Direction.MIN),
             Objective(name="calibrations", formula=f'R{{"calibrations"}}=? [C<={horizon}]', direction=Direction.MIN),
         ],
-        baselines=[Baseline(name=f"every-{k}", values={"c": k}) for k in range(1, options.max_interval + 1)],
+        baselines=Baseline.sweep("c", range(1, options.max_interval + 1), "every-{}"),
     )
 
 

@@ -13,16 +13,27 @@ from parley_plugins.robot_grid.planner import plan
 def test_free_map_ties_are_broken_like_the_package():
     grid = from_rows([[0, 0, 0], [0, 0, 0], [0, 0, 0]], source="test")
     assert plan(grid) == {
-        (1, 2): "east", (2, 1): "north", (0, 2): "east", (1, 1): "north",
-        (0, 1): "north", (0, 0): "north", (1, 0): "west", (2, 0): "west",
+        (1, 2): "east",
+        (2, 1): "north",
+        (0, 2): "east",
+        (1, 1): "north",
+        (0, 1): "north",
+        (0, 0): "north",
+        (1, 0): "west",
+        (2, 0): "west",
     }
 
 
 def test_obstacles_and_the_target_get_no_move():
     grid = from_rows([[0, 0, 0], [0, 10, 0], [0, 0, 0]], source="test")
     assert plan(grid) == {
-        (1, 2): "east", (2, 1): "north", (0, 2): "east", (0, 1): "north",
-        (0, 0): "north", (1, 0): "west", (2, 0): "west",
+        (1, 2): "east",
+        (2, 1): "north",
+        (0, 2): "east",
+        (0, 1): "north",
+        (0, 0): "north",
+        (1, 0): "west",
+        (2, 0): "west",
     }
 
 

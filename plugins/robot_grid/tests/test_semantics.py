@@ -76,7 +76,7 @@ def reference(grid, moves, policy, p, horizon, move_cost=1.0, localisation_cost=
     frontier = list(np.flatnonzero(goal))
     while frontier:
         j = frontier.pop()
-        for i in back.indices[back.indptr[j]:back.indptr[j + 1]]:
+        for i in back.indices[back.indptr[j] : back.indptr[j + 1]]:
             if not reach[i] and matrix[i, j] > 0:
                 reach[i] = True
                 frontier.append(i)

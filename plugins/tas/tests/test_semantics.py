@@ -85,7 +85,6 @@ def reference(o, policy) -> tuple[float, float, float]:
     return tuple(totals / o.rounds)
 
 
-
 def evaluate(options, policies):
     family = augment(CASE.build(options))
     with StormEvaluator(family, workers=1) as storm:
@@ -101,12 +100,34 @@ def uniform(options, c):
     "settings",
     [
         ["rounds=8", "max_interval=4", "response_time=true"],
-        ["rounds=12", "max_interval=5", "backup_levels=0.05,0.07,0.4,1", "degrade=0.15", "recover=0.05", "response_time=true"],
         [
-            "rounds=10", "max_interval=3", "p_vital=0.9", "p_alarm=0.2", "p_drug=0.3", "p_dose=0.1",
-            "peak_start=0.5", "peak_end=0.5", "response_time=true",
+            "rounds=12",
+            "max_interval=5",
+            "backup_levels=0.05,0.07,0.4,1",
+            "degrade=0.15",
+            "recover=0.05",
+            "response_time=true",
         ],
-        ["rounds=5", "max_interval=2", "p_vital=1", "peak_start=0", "backup_levels=0.05,1", "probe_cost=3", "response_time=true"],
+        [
+            "rounds=10",
+            "max_interval=3",
+            "p_vital=0.9",
+            "p_alarm=0.2",
+            "p_drug=0.3",
+            "p_dose=0.1",
+            "peak_start=0.5",
+            "peak_end=0.5",
+            "response_time=true",
+        ],
+        [
+            "rounds=5",
+            "max_interval=2",
+            "p_vital=1",
+            "peak_start=0",
+            "backup_levels=0.05,1",
+            "probe_cost=3",
+            "response_time=true",
+        ],
     ],
 )
 def test_storm_on_the_generated_model_matches_an_independent_computation(settings):
@@ -153,7 +174,9 @@ def test_a_provider_that_never_fails_makes_probing_useless(never_fails):
     never = values[-1]
     for k, (failure, cost) in zip(intervals, values):
         assert failure == pytest.approx(never[0], rel=1e-12)
-        assert cost - never[1] == pytest.approx(probe_cost * (rounds // k if k <= 5 else 0) / rounds, rel=1e-9, abs=1e-12)
+        assert cost - never[1] == pytest.approx(
+            probe_cost * (rounds // k if k <= 5 else 0) / rounds, rel=1e-9, abs=1e-12
+        )
     # and the failure probability is the closed form without any fail-over failure
     assert never[0] == pytest.approx(reference(options, uniform(options, 6))[0], rel=1e-12)
 
@@ -198,7 +221,9 @@ def test_probing_every_k_executions_bounds_how_long_a_changed_backup_goes_unnoti
     def stale_for(n):  # some state from which "stale" may hold for the next n steps (G<=n, as !F<=n !)
         return f'P=? [F P<1 [F<={n} !"stale"]]'
 
-    reach_longest, reach_longer = storm_values(system.prism, [stale_for(longest), stale_for(longest + 1)], {"c": k}, exact=True)
+    reach_longest, reach_longer = storm_values(
+        system.prism, [stale_for(longest), stale_for(longest + 1)], {"c": k}, exact=True
+    )
     assert reach_longest == 1.0
     assert reach_longer == 0.0
 

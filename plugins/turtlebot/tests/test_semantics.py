@@ -20,7 +20,16 @@ from parley_plugins.turtlebot import world_of
 from parley_plugins.turtlebot.world import CRASH, HEADINGS, OUT, STEP
 
 CASE = load_registry().get("turtlebot")
-SMALL = ["size=4", "start=0:0", "target=3:3", "obstacles=1:1,2:1", "samples=40", "heading_noise=20", "horizon=45", "max_period=3"]
+SMALL = [
+    "size=4",
+    "start=0:0",
+    "target=3:3",
+    "obstacles=1:1,2:1",
+    "samples=40",
+    "heading_noise=20",
+    "horizon=45",
+    "max_period=3",
+]
 
 
 class Reference:
@@ -48,7 +57,17 @@ class Reference:
             result = []
             for outcome, p in outcomes:
                 if outcome.kind == "move":
-                    nxt = (1, x + outcome.dx, y + outcome.dy, outcome.heading, ex, ey, HEADINGS.index(move), step, False)
+                    nxt = (
+                        1,
+                        x + outcome.dx,
+                        y + outcome.dy,
+                        outcome.heading,
+                        ex,
+                        ey,
+                        HEADINGS.index(move),
+                        step,
+                        False,
+                    )
                 else:
                     nxt = (1, x, y, d, ex, ey, HEADINGS.index(move), step, True)
                 result.append((p, self.move_cost, nxt))
@@ -93,7 +112,7 @@ class Reference:
         can = goal.copy()
         changed = True
         while changed:
-            grown = can | ((matrix[:, can].sum(axis=1) > 0))
+            grown = can | (matrix[:, can].sum(axis=1) > 0)
             changed = bool((grown != can).any())
             can = grown
         unknown = can & ~goal
@@ -147,7 +166,17 @@ def test_localising_every_move_costs_the_localisations(small):
 
 def test_without_noise_the_robot_follows_its_plan_and_never_needs_localising():
     options = CASE.options(
-        ["size=4", "start=0:0", "target=3:3", "obstacles=1:1", "heading_noise=0", "turn_noise=0", "left_wheel=1", "distance_noise=0", "samples=20"]
+        [
+            "size=4",
+            "start=0:0",
+            "target=3:3",
+            "obstacles=1:1",
+            "heading_noise=0",
+            "turn_noise=0",
+            "left_wheel=1",
+            "distance_noise=0",
+            "samples=20",
+        ]
     )
     world = world_of(options)
     assert len(world.motions) == (16 - 1) * 4 * 4
@@ -163,7 +192,7 @@ def test_without_noise_the_robot_follows_its_plan_and_never_needs_localising():
         assert p == 1.0
     family = augment(CASE.build(options))
     never = {d.name: 5 for d in family.decisions}
-    success, = storm_values(family.prism, ['P=? [F "goal"]'], never)
+    (success,) = storm_values(family.prism, ['P=? [F "goal"]'], never)
     assert success == pytest.approx(1.0, abs=1e-12)
 
 

@@ -79,7 +79,9 @@ def test_the_kinematic_table_is_a_distribution_and_reproducible():
 
 def test_a_weak_left_wheel_drifts_left():
     def sideways(left_wheel):
-        table = simulate(5, frozenset(), left_wheel=left_wheel, heading_noise=0, turn_noise=0, distance_noise=0, samples=400)
+        table = simulate(
+            5, frozenset(), left_wheel=left_wheel, heading_noise=0, turn_noise=0, distance_noise=0, samples=400
+        )
         outcomes = dict(table[(2, 0, 0, "north")])
         west = sum(p for o, p in outcomes.items() if o.kind == "move" and o.dx == -1)
         east = sum(p for o, p in outcomes.items() if o.kind == "move" and o.dx == 1)
@@ -92,6 +94,7 @@ def test_a_weak_left_wheel_drifts_left():
 
 def _published_text(world, slip: bool) -> str:
     """A model in the paper's format (as its generator writes them), written from ``world``."""
+
     def expression(variable, delta, move):
         if delta == 0:
             return variable
@@ -100,9 +103,15 @@ def _published_text(world, slip: bool) -> str:
         bound = "N" if slip and move == "south" and variable == "y" else "0"
         return f"max({bound},{variable}-1)"
 
-    lines = ["dtmc", f"const int N={world.size - 1};", f"const int startX = {world.start[0]};",
-             f"const int startY = {world.start[1]};", f"const int targetX = {world.target[0]};",
-             f"const int targetY = {world.target[1]};", "module Robot"]
+    lines = [
+        "dtmc",
+        f"const int N={world.size - 1};",
+        f"const int startX = {world.start[0]};",
+        f"const int startY = {world.start[1]};",
+        f"const int targetX = {world.target[0]};",
+        f"const int targetY = {world.target[1]};",
+        "module Robot",
+    ]
     for (x, y, heading, move), outcomes in sorted(world.motions.items()):
         for estimate in range(4):
             updates = []
@@ -115,26 +124,36 @@ def _published_text(world, slip: bool) -> str:
                     updates.append(
                         f"{p}:(x'={expression('x', outcome.dx, move)})&(y'={expression('y', outcome.dy, move)})&(direction'={outcome.heading})"
                     )
-            lines.append(f"[{move}] (ready=1) & (x={x}) & (y={y}) & (direction={heading}) & (directionhat={estimate}) -> ")
+            lines.append(
+                f"[{move}] (ready=1) & (x={x}) & (y={y}) & (direction={heading}) & (directionhat={estimate}) -> "
+            )
             lines.append("  " + " +\n  ".join(updates) + ";")
     lines.append("endmodule\nmodule Adaptation_MAPE_controller")
-    lines += [f"  [{move}] (xhat={x}) & (yhat={y}) & (crashed=0) & (out=0) -> true;" for (x, y), move in world.plan.items()]
+    lines += [
+        f"  [{move}] (xhat={x}) & (yhat={y}) & (crashed=0) & (out=0) -> true;" for (x, y), move in world.plan.items()
+    ]
     lines.append("endmodule")
     return "\n".join(lines) + "\n"
 
 
 def test_the_papers_format_reads_back_and_its_south_slip_is_repaired_or_kept():
-    world = world_of(CASE.options(["size=4", "start=0:0", "target=3:3", "obstacles=1:1", "samples=60", "heading_noise=25"]))
+    world = world_of(
+        CASE.options(["size=4", "start=0:0", "target=3:3", "obstacles=1:1", "samples=60", "heading_noise=25"])
+    )
     # keep only moves by at most one cell (the paper's format cannot say more)
     motions = {k: v for k, v in world.motions.items() if all(abs(o.dx) <= 1 and abs(o.dy) <= 1 for o, _ in v)}
-    world = type(world)(size=4, start=(0, 0), target=(3, 3), obstacles=world.obstacles, motions=motions, plan=world.plan)
+    world = type(world)(
+        size=4, start=(0, 0), target=(3, 3), obstacles=world.obstacles, motions=motions, plan=world.plan
+    )
     text = _published_text(world, slip=True)
     repaired = published.parse(text)
     assert repaired.motions == world.motions and repaired.plan == world.plan
     assert (repaired.size, repaired.start, repaired.target, repaired.obstacles) == (4, (0, 0), (3, 3), {(1, 1)})
     kept = published.parse(text, repair=False)
     slipped = [
-        (key, outcome) for key, outcomes in world.motions.items() for outcome, _ in outcomes
+        (key, outcome)
+        for key, outcomes in world.motions.items()
+        for outcome, _ in outcomes
         if key[3] == "south" and outcome.kind == "move" and outcome.dy == -1
     ]
     assert slipped

@@ -174,7 +174,8 @@ def test_restores_cost_by_the_hour_of_the_day():
     # a restore of A at hour start+k; C<=4k sums the first k rounds.
     options = CASE.options(["attack_a=1", "rounds=24", "start_hour=0"])
     extra = [
-        Objective(name=f"cost_{k}", formula=f'R{{"cost"}}=? [C<={4 * k}]', direction=Direction.MIN) for k in range(1, 25)
+        Objective(name=f"cost_{k}", formula=f'R{{"cost"}}=? [C<={4 * k}]', direction=Direction.MIN)
+        for k in range(1, 25)
     ]
     family = family_of(options, extra=extra)
     totals = storm(family, [uniform(family, 0)])[0, 2:]
@@ -253,7 +254,8 @@ def test_the_quotient_evaluator_handles_both_objectives_and_agrees_with_storm():
 
 
 @pytest.mark.parametrize(
-    "setting", ["start_hour=24", "attack_a=1.5", "stale=-0.1", "ids_error=2", "rounds=0", "restore_at=11", "scan_cost=-1"]
+    "setting",
+    ["start_hour=24", "attack_a=1.5", "stale=-0.1", "ids_error=2", "rounds=0", "restore_at=11", "scan_cost=-1"],
 )
 def test_bad_options_are_refused(setting):
     with pytest.raises(OptionError):
