@@ -25,7 +25,7 @@ hookimpl = pluggy.HookimplMarker(PROJECT)
 
 
 @hookspec
-def parley_case_studies() -> list[CaseStudy]:
+def parley_case_studies() -> list[CaseStudy]:  # type: ignore[empty-body]  # a hookspec: only its signature is used
     """Return the case studies this plugin provides.
 
     Each :class:`~parley_core.casestudy.CaseStudy` has a unique ``name`` (lower case,

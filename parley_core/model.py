@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
-from typing import Any
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any, TypeVar
 
 import attrs
 import numpy as np
@@ -17,6 +17,7 @@ from attrs import field, frozen, validators
 from parley_core.errors import ModelError, OptionError, PolicyError
 
 _IDENTIFIER = validators.matches_re(r"[A-Za-z_][A-Za-z0-9_]*")
+_T = TypeVar("_T")
 
 
 class Direction(enum.Enum):
@@ -43,15 +44,12 @@ class DecisionKind(enum.Enum):
     THRESHOLD = "threshold"
 
 
-def _tuple_of(item_type: type) -> Callable[[Any], tuple]:
-    def convert(value: Any) -> tuple:
-        result = tuple(value)
-        for item in result:
-            if not isinstance(item, item_type):
-                raise TypeError(f"expected {item_type.__name__}, got {type(item).__name__}: {item!r}")
-        return result
-
-    return convert
+def _tuple_of(value: Iterable[Any], item_type: type[_T]) -> tuple[_T, ...]:
+    result = tuple(value)
+    for item in result:
+        if not isinstance(item, item_type):
+            raise TypeError(f"expected {item_type.__name__}, got {type(item).__name__}: {item!r}")
+    return result
 
 
 @frozen(kw_only=True)
@@ -101,7 +99,8 @@ class Service:
     def _check_range(self, _attribute: attrs.Attribute, high: int) -> None:
         if high < self.low:
             raise ModelError(
-                f"service {self.name!r}: empty range {self.low}..{high} for {self.constant}; give LOW..HIGH with LOW <= HIGH"
+                f"service {self.name!r}: empty range {self.low}..{high} for {self.constant}; "
+                "give LOW..HIGH with LOW <= HIGH"
             )
 
     @property
@@ -134,6 +133,20 @@ class Baseline:
         return tuple(cls(name=name.format(v), values={constant: v}) for v in values)
 
 
+# the converters of the fields that hold services, objectives and baselines (named
+# functions, so that mypy's attrs plugin types the parameters of ``__init__``)
+def _services(value: Iterable[Service]) -> tuple[Service, ...]:
+    return _tuple_of(value, Service)
+
+
+def _objectives(value: Iterable[Objective]) -> tuple[Objective, ...]:
+    return _tuple_of(value, Objective)
+
+
+def _baselines(value: Iterable[Baseline]) -> tuple[Baseline, ...]:
+    return _tuple_of(value, Baseline)
+
+
 @frozen(kw_only=True)
 class SystemModel:
     """What a case study hands to the core: a DTMC with its services, observation and objectives.
@@ -146,11 +159,11 @@ class SystemModel:
 
     name: str = field(validator=_IDENTIFIER)
     prism: str = field(validator=validators.min_len(1))
-    services: tuple[Service, ...] = field(converter=_tuple_of(Service), validator=validators.min_len(1))
-    observation: tuple[str, ...] = field(converter=tuple, validator=validators.min_len(1))
-    objectives: tuple[Objective, ...] = field(converter=_tuple_of(Objective))
+    services: tuple[Service, ...] = field(converter=_services, validator=validators.min_len(1))
+    observation: tuple[str, ...] = field(converter=tuple[str, ...], validator=validators.min_len(1))
+    objectives: tuple[Objective, ...] = field(converter=_objectives)
     """What to optimise; may be empty only for augmentation without a search."""
-    baselines: tuple[Baseline, ...] = field(converter=_tuple_of(Baseline), factory=tuple)
+    baselines: tuple[Baseline, ...] = field(converter=_baselines, factory=tuple)
     description: str = ""
     context: Any = field(default=None, eq=False, repr=False)
 
@@ -205,13 +218,13 @@ class Family:
 
     name: str = field(validator=_IDENTIFIER)
     prism: str
-    services: tuple[Service, ...] = field(converter=_tuple_of(Service))
-    observation: tuple[str, ...] = field(converter=tuple)
-    objectives: tuple[Objective, ...] = field(converter=_tuple_of(Objective))
-    baselines: tuple[Baseline, ...] = field(converter=_tuple_of(Baseline), factory=tuple)
-    decisions: tuple[Decision, ...] = field(converter=tuple)
-    valuations: tuple[tuple[int, ...], ...] = field(converter=tuple)
-    left_out: tuple[tuple[int, ...], ...] = field(converter=tuple, factory=tuple)
+    services: tuple[Service, ...] = field(converter=_services)
+    observation: tuple[str, ...] = field(converter=tuple[str, ...])
+    objectives: tuple[Objective, ...] = field(converter=_objectives)
+    baselines: tuple[Baseline, ...] = field(converter=_baselines, factory=tuple)
+    decisions: tuple[Decision, ...] = field(converter=tuple[Decision, ...])
+    valuations: tuple[tuple[int, ...], ...] = field(converter=tuple[tuple[int, ...], ...])
+    left_out: tuple[tuple[int, ...], ...] = field(converter=tuple[tuple[int, ...], ...], factory=tuple)
     system: SystemModel | None = field(default=None, eq=False, repr=False)
 
     @classmethod
@@ -290,8 +303,8 @@ class Valued:
     """Policies with their objective values (in the objectives' own units and directions):
     any evaluated set, such as the baselines or the policies of a file."""
 
-    objectives: tuple[Objective, ...] = field(converter=tuple)
-    policies: tuple[Policy, ...] = field(converter=tuple)
+    objectives: tuple[Objective, ...] = field(converter=tuple[Objective, ...])
+    policies: tuple[Policy, ...] = field(converter=tuple[Policy, ...])
     values: tuple[tuple[float, ...], ...] = field(
         converter=lambda rows: tuple(tuple(float(v) for v in r) for r in rows)
     )

@@ -22,9 +22,11 @@ from parley_core.errors import OptionError
 Validator = Callable[[Any, attrs.Attribute, Any], None]
 
 
-def option(default: Any, help: str, *checks: Validator) -> Any:
-    """An option field: its default, its help text (shown by ``parley options``) and validators."""
-    return attrs.field(default=default, validator=list(checks) or None, metadata={"help": help})
+def option(default: Any, help: str, *checks: Validator | list[Validator]) -> Any:
+    """An option field: its default, its help text (shown by ``parley options``) and
+    validators (each given alone or in a list)."""
+    flat = [v for check in checks for v in (check if isinstance(check, list) else [check])]
+    return attrs.field(default=default, validator=flat or None, metadata={"help": help})
 
 
 def positive(_instance: Any, attribute: attrs.Attribute, value: Any) -> None:

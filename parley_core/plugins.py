@@ -6,6 +6,7 @@ import importlib
 import pkgutil
 from collections.abc import Iterable, Mapping
 from importlib import metadata
+from typing import cast
 
 import pluggy
 from attrs import field, frozen
@@ -75,14 +76,22 @@ def versions(pm: pluggy.PluginManager) -> dict[str, str]:
     return found
 
 
+def _case_studies(value: Mapping[str, CaseStudy]) -> dict[str, CaseStudy]:
+    return dict(value)
+
+
+def _names(value: Mapping[str, str]) -> dict[str, str]:
+    return dict(value)
+
+
 @frozen(kw_only=True)
 class Registry:
     """The registered case studies by name, with the plugin that provided each."""
 
-    case_studies: Mapping[str, CaseStudy] = field(converter=dict)
-    providers: Mapping[str, str] = field(converter=dict)
+    case_studies: Mapping[str, CaseStudy] = field(converter=_case_studies)
+    providers: Mapping[str, str] = field(converter=_names)
     """Case study -> the plugin (module or entry point name) that provided it."""
-    distributions: Mapping[str, str] = field(factory=dict, converter=dict)
+    distributions: Mapping[str, str] = field(factory=dict, converter=_names)
     """Plugin -> its distribution and version, where known."""
 
     def provider(self, name: str) -> str:
@@ -113,7 +122,8 @@ def load_registry(pm: pluggy.PluginManager | None = None) -> Registry:
     for impl in pm.hook.parley_case_studies.get_hookimpls():
         provider = pm.get_name(impl.plugin) or repr(impl.plugin)
         try:
-            provided = impl.function()
+            # pluggy types the result object; the hookspec asks for a list of CaseStudy (checked below)
+            provided = cast("Iterable[object] | None", impl.function())
         except Exception as exc:
             raise PluginError(
                 f"plugin {provider} failed to list its case studies ({type(exc).__name__}: {exc})"

@@ -183,6 +183,7 @@ def policies_or_constant(family: Family, path: Path | None, constant: int | None
         raise PolicyError("give exactly one of --policies FILE and --constant K")
     if path is not None:
         return read_policies(path, family)
+    assert constant is not None  # exactly one of the two is given
     policy = family.uniform(f"constant-{constant}", {s.constant: constant for s in family.services})
     family.check(policy)
     return [policy]

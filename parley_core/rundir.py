@@ -21,13 +21,15 @@ class RunDirectory:
     path: Path
     summary: dict[str, Any] = field(eq=False)
     """summary.json as written (settings, timings, versions...)."""
-    objectives: tuple[Objective, ...] = field(converter=tuple)
-    services: tuple[Service, ...] = field(converter=tuple)
-    observation: tuple[str, ...] = field(converter=tuple)
-    left_out: tuple[tuple[int, ...], ...] = field(converter=tuple)
+    objectives: tuple[Objective, ...] = field(converter=tuple[Objective, ...])
+    services: tuple[Service, ...] = field(converter=tuple[Service, ...])
+    observation: tuple[str, ...] = field(converter=tuple[str, ...])
+    left_out: tuple[tuple[int, ...], ...] = field(converter=tuple[tuple[int, ...], ...])
     front: Valued
     """The front's policies (their decision values in the order of ``decisions``) and values."""
-    decisions: tuple[tuple[str, str, tuple[int, ...]], ...] = field(converter=tuple)
+    decisions: tuple[tuple[str, str, tuple[int, ...]], ...] = field(
+        converter=tuple[tuple[str, str, tuple[int, ...]], ...]
+    )
     """(decision constant, service constant, observation valuation)."""
     model: str
 

@@ -58,7 +58,7 @@ class SearchSettings:
     max_evaluations: int | None = field(default=None, validator=_positive_or_none)
     time_limit: float | None = field(default=None, validator=_positive_or_none)
     seed: int = 1
-    constraints: tuple[Constraint, ...] = field(default=(), converter=tuple)
+    constraints: tuple[Constraint, ...] = field(default=(), converter=tuple[Constraint, ...])
 
     def __attrs_post_init__(self) -> None:
         if self.generations is None and self.max_evaluations is None and self.time_limit is None:

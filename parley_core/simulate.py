@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import stormpy
@@ -32,6 +33,11 @@ from parley_core.prism.properties import Shape, shape
 from parley_core.urc import URC
 
 Z99 = 2.5758293035489004
+
+_Reach = tuple[Literal["reach"], str, np.ndarray, int | None, float]
+"""A probability to estimate: objective, phi states, step bound (None: none), checked value."""
+_Reward = tuple[Literal["reward"], str, int, int, float]
+"""A mean reward to estimate: objective, reward model index, steps, checked value."""
 
 
 @frozen(kw_only=True)
@@ -82,7 +88,7 @@ def simulate(
         raise ModelError(f"Storm cannot build the policy's model: {prism.storm_message(exc)}") from None
     checked = StormChecker(StormTask.of(family)).check(values)
 
-    plans = []
+    plans: list[str | _Reach | _Reward] = []
     for objective, prop, value in zip(family.objectives, properties, checked):
         found = shape(prop, instance)
         if found.kind in (Shape.UNTIL, Shape.BOUNDED_UNTIL):
@@ -95,6 +101,7 @@ def simulate(
             )
             plans.append(("reach", objective.name, mask, found.steps, value))
         elif found.kind is Shape.CUMULATIVE:
+            assert found.steps is not None  # shape() gives C<=k its bound k
             rewards = list(model.reward_models)
             name = found.reward if found.reward is not None else rewards[0]
             plans.append(("reward", objective.name, rewards.index(name), found.steps, value))
@@ -103,9 +110,10 @@ def simulate(
 
     engine = storm_simulator.developer.DiscreteTimeSparseModelSimulator(model)
     engine.set_seed(seed)
-    sinks = {}
+    sinks: dict[int, bool] = {}
+    plan: str | _Reach | _Reward
     active = [p for p in plans if not isinstance(p, str)]
-    horizon = max([max_steps if p[0] == "reach" and p[3] is None else p[3] for p in active] or [0])
+    horizon = max([max_steps if p[3] is None else p[3] for p in active] or [0])
     hits = np.zeros(len(active), dtype=np.int64)
     sums = np.zeros(len(active))
     squares = np.zeros(len(active))

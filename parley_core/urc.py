@@ -10,7 +10,7 @@ with a clear error instead of guessing a default.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -23,16 +23,28 @@ from parley_core.model import Service
 FORMAT = "parley-urc/1"
 
 
+def _table(value: Mapping[tuple[int, ...], Mapping[str, int]]) -> dict[tuple[int, ...], Mapping[str, int]]:
+    return dict(value)
+
+
+def _valuations(value: Iterable[tuple[int, ...]]) -> frozenset[tuple[int, ...]]:
+    return frozenset(value)
+
+
+def _values(value: Mapping[str, float]) -> dict[str, float]:
+    return dict(value)
+
+
 @frozen(kw_only=True)
 class URC:
     """An uncertainty reduction controller: observation valuation -> service decisions."""
 
-    observation: tuple[str, ...] = field(converter=tuple)
-    services: tuple[Service, ...] = field(converter=tuple)
-    table: Mapping[tuple[int, ...], Mapping[str, int]] = field(converter=dict)
-    left_out: frozenset[tuple[int, ...]] = field(factory=frozenset, converter=frozenset)
+    observation: tuple[str, ...] = field(converter=tuple[str, ...])
+    services: tuple[Service, ...] = field(converter=tuple[Service, ...])
+    table: Mapping[tuple[int, ...], Mapping[str, int]] = field(converter=_table)
+    left_out: frozenset[tuple[int, ...]] = field(factory=frozenset, converter=_valuations)
     policy: str = ""
-    values: Mapping[str, float] = field(factory=dict, converter=dict)
+    values: Mapping[str, float] = field(factory=dict, converter=_values)
     source: str = ""
 
     def decide(self, observation: Mapping[str, int] | Sequence[int]) -> dict[str, int]:
@@ -101,7 +113,8 @@ class URC:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise PolicyError(
-                f"controller file {path} is not JSON ({exc.msg}, line {exc.lineno}); give a file written by `parley select`"
+                f"controller file {path} is not JSON ({exc.msg}, line {exc.lineno}); "
+                "give a file written by `parley select`"
             ) from None
         if not isinstance(data, dict) or data.get("format") != FORMAT:
             raise PolicyError(

@@ -63,7 +63,7 @@ def parse_observation(items: Sequence[str]) -> tuple[str, ...]:
 def read_objectives(path: Path, maximize: Sequence[str] = (), minimize: Sequence[str] = ()) -> list[Objective]:
     """Objectives from a properties file (see the module docstring)."""
     text = read_text(path, "properties file", "give a file of PCTL properties (one per line)", OptionError)
-    pending: tuple[str, str | None] | None = None
+    pending: tuple[str | None, str | None] | None = None
     found: list[tuple[str, str, str | None]] = []  # name, formula, direction
     for number, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
@@ -104,7 +104,8 @@ def read_objectives(path: Path, maximize: Sequence[str] = (), minimize: Sequence
         direction = "max" if name in maximize else "min" if name in minimize else direction
         if direction is None:
             raise OptionError(
-                f"objective {name} has no direction; put '// name: {name}, max' (or min) before it, or use --maximize/--minimize {name}"
+                f"objective {name} has no direction; put '// name: {name}, max' (or min) before it, "
+                f"or use --maximize/--minimize {name}"
             )
         if not name.isidentifier():
             raise OptionError(f"objective name {name!r} is not an identifier; use letters, digits and underscores")

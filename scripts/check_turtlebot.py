@@ -71,7 +71,9 @@ def main() -> int:
     for label, values in policies:
         by_name = dict(zip(names, values))
         defined = re.sub(
-            r"evolve int (decision_\w+)\[1\.\.5\];", lambda m: f"const int {m.group(1)} = {by_name[m.group(1)]};", text
+            r"evolve int (decision_\w+)\[1\.\.5\];",
+            lambda m, by_name=by_name: f"const int {m.group(1)} = {by_name[m.group(1)]};",
+            text,
         )
         published = storm_values(defined, PUBLISHED_PROPERTIES)
         ours = storm_values(kept.prism, PARLEY_PROPERTIES, _constants(kept, by_name))

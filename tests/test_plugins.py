@@ -159,3 +159,10 @@ def test_a_broken_installed_plugin_is_a_clear_error(tmp_path):
     assert listed.returncode == 2
     assert listed.stderr.strip().startswith("error: an installed parley plugin failed to load (ImportError: boom)")
     assert "Traceback" not in listed.stderr
+
+
+def test_the_plugin_guide_names_every_case_study_field():
+    guide = (ROOT / "docs" / "plugins.md").read_text()
+    sentence = guide[guide.index("Their\nfields are documented once") :].split("; a test checks")[0]
+    named = {part.strip(" `\n,.") for part in sentence.split(":", 1)[1].replace(" and ", ",").split(",")}
+    assert named == {f.name for f in attrs.fields(CaseStudy)}

@@ -33,7 +33,8 @@ def select_command(
     ] = None,
     json_: JsonOption = False,
 ) -> None:
-    """Pick one policy from a front (best on an objective under constraints, or the knee) and write it as a controller."""
+    """Pick one policy from a front (best on an objective under constraints, or the knee) and write it as a
+    controller."""
     from parley_core import rundir
     from parley_core.selection import controller, select
 
@@ -74,7 +75,8 @@ def simulate_command(
     max_steps: Annotated[int, typer.Option(min=1, help="Longest episode for unbounded reachability.")] = 10_000,
     json_: JsonOption = False,
 ) -> None:
-    """Simulate a policy with Storm's simulator; print empirical values with 99% intervals next to the model-checked ones."""
+    """Simulate a policy with Storm's simulator; print empirical values with 99% intervals next to the
+    model-checked ones."""
     from parley_core.policies import policy_from_file
     from parley_core.simulate import simulate
 

@@ -57,7 +57,7 @@ class RunSpec:
     campaign: str
     case: str
     instance: str
-    assignments: tuple[str, ...] = field(converter=tuple)
+    assignments: tuple[str, ...] = field(converter=tuple[str, ...])
     repetition: int
     seed: int
     budget: Budget
@@ -210,8 +210,10 @@ def execute(
         nonlocal stored
         if error is not None:
             failures.append((spec.instance, spec.repetition, f"{type(error).__name__}: {error}"))
-        elif store.add(result):
-            stored += 1
+        else:
+            assert result is not None  # a run that raised nothing returned its record
+            if store.add(result):
+                stored += 1
         if progress:
             progress(1)
 
@@ -309,7 +311,9 @@ def verify_stored(
         for future in as_completed(futures):
             checked = future.result()
             store.replace_front(checked)
-            worst = max(worst, checked.verification.max_difference)
+            verification = checked.verification
+            assert verification is not None  # verify_record records it
+            worst = max(worst, verification.max_difference)
             if progress:
                 progress(1)
     return len(todo), len(records) - len(todo), worst

@@ -25,6 +25,7 @@ import io
 from collections import defaultdict
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from attrs import frozen
@@ -103,7 +104,8 @@ def _igd(values: np.ndarray, directions, setting: Setting, ideal: np.ndarray, re
 
 
 def published_fronts(directory: Path, instance: str, n_objectives: int) -> list[np.ndarray]:
-    """Published fronts of an instance: ``{instance}_rep{R}.front.tsv`` (a header line, then one tab-separated row per policy)."""
+    """Published fronts of an instance: ``{instance}_rep{R}.front.tsv`` (a header line, then one tab-separated
+    row per policy)."""
     fronts = []
     for path in sorted(
         directory.glob(f"{instance}_rep*.front.tsv"), key=lambda p: int(p.stem.split("_rep")[-1].split(".")[0])
@@ -147,7 +149,7 @@ def analyse(records: Sequence[RunRecord], settings: Sequence[Setting], published
             base_igd = _igd(baseline, directions, setting, ideal, box_front)
             igd = tuple(_igd(f, directions, setting, ideal, box_front) for f in fronts)
             igd_test = compare([0.0] * len(igd), [i - base_igd for i in igd]) if len(box_front) else None
-            row = dict(
+            row: dict[str, Any] = dict(
                 instance=instance,
                 setting=tuple(setting),
                 baseline_hv=base_hv,
@@ -246,8 +248,8 @@ def table2_document(
         "Per requirement setting (bounds), the number of instances where parley is significantly better / worse / "
         "not different from the baseline (Mann-Whitney U at 0.05 on the repetitions' gains against zero; A12 per "
         "instance in table2.csv). HV: hypervolume with the bounds as reference; SP: Deb's spread; paper's SP: the "
-        "paper's mean neighbour distance; IGD+: distance from the best known front (lower is better for the last three).\n\n"
-        + table2_markdown(rows, settings, header, published)
+        "paper's mean neighbour distance; IGD+: distance from the best known front (lower is better for the last "
+        "three).\n\n" + table2_markdown(rows, settings, header, published)
     )
 
 

@@ -11,7 +11,7 @@ from scipy.stats import mannwhitneyu
 ALPHA = 0.05
 
 
-def a12(first: Sequence[float], second: Sequence[float]) -> float:
+def a12(first: Sequence[float] | np.ndarray, second: Sequence[float] | np.ndarray) -> float:
     """Vargha and Delaney's A12: the probability that a value from ``first`` exceeds one from
     ``second`` (ties count half). 0.5 means no difference."""
     a = np.asarray(first, dtype=float)[:, None]
@@ -28,7 +28,9 @@ class Comparison:
     a12: float
 
 
-def compare(first: Sequence[float], second: Sequence[float], alpha: float = ALPHA) -> Comparison:
+def compare(
+    first: Sequence[float] | np.ndarray, second: Sequence[float] | np.ndarray, alpha: float = ALPHA
+) -> Comparison:
     """Two-sided Mann-Whitney U of two samples; the verdict follows A12 when p < alpha."""
     first, second = np.asarray(first, dtype=float), np.asarray(second, dtype=float)
     effect = a12(first, second)

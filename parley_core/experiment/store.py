@@ -56,7 +56,7 @@ class RunRecord:
     seed: int
     options: dict[str, Any]
     """The case study's options in JSON form (:func:`parley_core.options.options_as_dict`)."""
-    objectives: tuple[Objective, ...] = field(converter=tuple)
+    objectives: tuple[Objective, ...] = field(converter=tuple[Objective, ...])
     front: Valued
     """The front's policies (decision values; named p1, p2, ... in stored order) and values."""
     baseline: Valued
@@ -183,7 +183,8 @@ class Store:
         """Store a finished run in one transaction; False if that run was stored already."""
         with self._transaction():
             cursor = self.connection.execute(
-                "INSERT OR IGNORE INTO runs (campaign, instance, repetition, seed, options, objectives, front, baseline, summary, finished) "
+                "INSERT OR IGNORE INTO runs "
+                "(campaign, instance, repetition, seed, options, objectives, front, baseline, summary, finished) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (
                     record.campaign,

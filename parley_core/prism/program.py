@@ -64,7 +64,8 @@ def parse_properties(formulas: Iterable[str], program: PrismProgram, *, origin: 
 
 
 def check_property_references(prop, program: PrismProgram, *, origin: str) -> None:
-    """Reject a reward property naming a reward structure the program lacks (labels are checked by Storm when building)."""
+    """Reject a reward property naming a reward structure the program lacks (labels are checked by Storm
+    when building)."""
     formula = prop.get_raw_formula()
     if formula.is_reward_operator_formula:
         if formula.has_reward_model_name():

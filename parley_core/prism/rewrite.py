@@ -151,7 +151,8 @@ def widen_bounds(module, constants: Mapping[str, object], system: SystemModel, m
         if variable.upper_bound_expression.contains_variable(wanted):
             upper = variable.upper_bound_expression.substitute(highest)
             widened[variable.name] = (
-                f"{variable.name}: [{variable.lower_bound_expression}..{upper}] init {variable.initial_value_expression};"
+                f"{variable.name}: [{variable.lower_bound_expression}..{upper}] "
+                f"init {variable.initial_value_expression};"
             )
     return widened
 

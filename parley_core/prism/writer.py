@@ -78,7 +78,7 @@ class Update:
 class Command:
     action: str = ""
     guard: str = "true"
-    updates: tuple[Update, ...] = field(factory=lambda: (Update(),), converter=tuple)
+    updates: tuple[Update, ...] = field(factory=lambda: (Update(),), converter=tuple[Update, ...])
 
     def render(self) -> str:
         return command_line(self.action, self.guard, [u.render() for u in self.updates])
@@ -92,8 +92,8 @@ def command_line(action: str, guard: str, updates: Iterable[str]) -> str:
 @frozen(kw_only=True)
 class Module:
     name: str
-    variables: tuple[Variable, ...] = field(factory=tuple, converter=tuple)
-    commands: tuple[Command, ...] = field(factory=tuple, converter=tuple)
+    variables: tuple[Variable, ...] = field(factory=tuple, converter=tuple[Variable, ...])
+    commands: tuple[Command, ...] = field(factory=tuple, converter=tuple[Command, ...])
 
     def render(self) -> str:
         lines = [f"module {self.name}"]
@@ -121,7 +121,7 @@ class RewardItem:
 @frozen(kw_only=True)
 class Rewards:
     name: str
-    items: tuple[RewardItem, ...] = field(converter=tuple)
+    items: tuple[RewardItem, ...] = field(converter=tuple[RewardItem, ...])
 
     def render(self) -> str:
         return "\n".join([f'rewards "{self.name}"', *(f"  {i.render()}" for i in self.items), "endrewards"])
@@ -142,11 +142,11 @@ class Program:
 
     kind: str = "dtmc"
     header: str = ""
-    constants: tuple[Constant, ...] = field(factory=tuple, converter=tuple)
-    formulas: tuple[Formula, ...] = field(factory=tuple, converter=tuple)
-    modules: tuple[Module, ...] = field(factory=tuple, converter=tuple)
-    rewards: tuple[Rewards, ...] = field(factory=tuple, converter=tuple)
-    labels: tuple[Label, ...] = field(factory=tuple, converter=tuple)
+    constants: tuple[Constant, ...] = field(factory=tuple, converter=tuple[Constant, ...])
+    formulas: tuple[Formula, ...] = field(factory=tuple, converter=tuple[Formula, ...])
+    modules: tuple[Module, ...] = field(factory=tuple, converter=tuple[Module, ...])
+    rewards: tuple[Rewards, ...] = field(factory=tuple, converter=tuple[Rewards, ...])
+    labels: tuple[Label, ...] = field(factory=tuple, converter=tuple[Label, ...])
 
     def render(self) -> str:
         blocks = []

@@ -14,6 +14,7 @@ import os
 import tarfile
 import tempfile
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import stormpy
@@ -34,8 +35,8 @@ class QuotientMDP:
     valuation (an index into ``valuations``, every valuation of the observation domains)."""
 
     system: SystemModel = field(eq=False, repr=False)
-    model: object = field(eq=False, repr=False)
-    program: object = field(eq=False, repr=False)
+    model: Any = field(eq=False, repr=False)
+    program: Any = field(eq=False, repr=False)
     properties: list = field(eq=False, repr=False)
     """The objectives' properties parsed against the quotient program (empty when built without)."""
     arrays: dict = field(eq=False, repr=False)

@@ -137,7 +137,10 @@ class QuotientSolver:
         order, with the states that only pass probability on (one transition, probability
         1) substituted away; x[0] holds the value when it returns True (converged)."""
         through = kernels.pass_through(count, indptr, cols, vals, ~free, count)
-        lumped = kernels.lump(count, indptr, cols, vals, through, constant)
+        # (indptr, cols, vals, constant) of the lumped equations
+        lumped: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] = kernels.lump(
+            count, indptr, cols, vals, through, constant
+        )
         rows = np.flatnonzero(free & (through < 0))[::-1].copy()
         return kernels.gauss_seidel(*lumped[:3], rows, x, lumped[3], TOLERANCE, MAX_SWEEPS) >= 0
 

@@ -96,4 +96,12 @@ def values(family: Family, policies: Policy | Sequence[Policy] | np.ndarray, eva
         engine.close()
 
 
-__all__ = ["case_study", "family", "storm_values", "values"]
+def left_to_storm(family: Family) -> tuple[str, ...]:
+    """The objectives the quotient evaluator cannot solve and has Storm check instead."""
+    from parley_core.evaluate.quotient import QuotientEvaluator
+
+    with QuotientEvaluator(family, workers=1) as evaluator:
+        return evaluator.fallback
+
+
+__all__ = ["case_study", "family", "left_to_storm", "storm_values", "values"]

@@ -10,43 +10,41 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from attrs import field, frozen, validators
+from attrs import frozen, validators
 
-from parley_core import Baseline, CaseStudy, DecisionKind, Direction, Objective, Service, SystemModel, hookimpl
+from parley_core import (
+    Baseline,
+    CaseStudy,
+    DecisionKind,
+    Direction,
+    Objective,
+    PolicyTable,
+    Service,
+    SystemModel,
+    hookimpl,
+    option,
+    positive,
+)
 from parley_plugins.robot_grid import grid as grids
 from parley_plugins.robot_grid.generator import prism_model
 from parley_plugins.robot_grid.planner import plan
 
 
-def _positive(_instance, attribute, value) -> None:
-    if value <= 0:
-        raise ValueError(f"option {attribute.name} must be positive, got {value}")
-
-
 @frozen(kw_only=True)
 class RobotGridOptions:
-    map: Path | None = field(
-        default=None, metadata={"help": "CSV map in the paper's package format; default: generate one"}
+    map: Path | None = option(None, "CSV map in the paper's package format; default: generate one")
+    size: int = option(10, "side of a generated map", validators.ge(2))
+    seed: int = option(0, "seed of a generated map")
+    p: float = option(
+        0.01,
+        "probability that a move deviates to each of the three other directions",
+        validators.ge(0.0),
+        validators.le(1 / 3),
     )
-    size: int = field(default=10, validator=validators.ge(2), metadata={"help": "side of a generated map"})
-    seed: int = field(default=0, metadata={"help": "seed of a generated map"})
-    p: float = field(
-        default=0.01,
-        validator=[validators.ge(0.0), validators.le(1 / 3)],
-        metadata={"help": "probability that a move deviates to each of the three other directions"},
-    )
-    horizon: int = field(
-        default=100,
-        validator=_positive,
-        metadata={"help": "steps of the cost objective C<=horizon (a move is 3 steps)"},
-    )
-    max_interval: int = field(
-        default=10, validator=_positive, metadata={"help": "largest localisation interval (moves)"}
-    )
-    move_cost: float = field(default=1.0, validator=validators.ge(0.0), metadata={"help": "cost of a move"})
-    localisation_cost: float = field(
-        default=5.0, validator=validators.ge(0.0), metadata={"help": "cost of a localisation"}
-    )
+    horizon: int = option(100, "steps of the cost objective C<=horizon (a move is 3 steps)", positive)
+    max_interval: int = option(10, "largest localisation interval (moves)", positive)
+    move_cost: float = option(1.0, "cost of a move", validators.ge(0.0))
+    localisation_cost: float = option(5.0, "cost of a localisation", validators.ge(0.0))
 
 
 def build(options: RobotGridOptions) -> SystemModel:
@@ -90,16 +88,16 @@ def build(options: RobotGridOptions) -> SystemModel:
                 description=f"expected cost of moves and localisations within {options.horizon} steps",
             ),
         ],
-        baselines=[Baseline(name=f"interval-{k}", values={"c": k}) for k in range(1, options.max_interval + 1)],
+        baselines=Baseline.sweep("c", range(1, options.max_interval + 1), "interval-{}"),
         context=(grid, moves),
     )
 
 
-def plot_policy(system: SystemModel, table, path: Path) -> None:
+def plot_policy(system: SystemModel, table: PolicyTable, path: Path) -> None:
     from parley_plugins.robot_grid.plot import draw_policy
 
     grid, moves = system.context
-    draw_policy(grid, moves, {cell: values["c"] for cell, values in table.items()}, path)
+    draw_policy(grid, moves, table.values_of("c"), path)
 
 
 CASE_STUDY = CaseStudy(

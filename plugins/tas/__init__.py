@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from attrs import field, frozen, validators
+from attrs import frozen, validators
 
 from parley_core import (
     Baseline,
@@ -23,61 +23,53 @@ from parley_core import (
     Direction,
     Objective,
     OptionError,
+    PolicyTable,
     Service,
     SystemModel,
     hookimpl,
+    option,
+    positive,
+    probability,
 )
 from parley_plugins.tas.generator import PROVIDERS, Scenario, prism_model
-
-_probability = [validators.ge(0.0), validators.le(1.0)]
-
-
-def _positive(_instance, attribute, value) -> None:
-    if value <= 0:
-        raise ValueError(f"option {attribute.name} must be positive, got {value}")
-
-
-def _option(default, text: str, validator=None):
-    return field(default=default, validator=validator, metadata={"help": text})
-
 
 MAS1, MAS5 = PROVIDERS["MAS1"], PROVIDERS["MAS5"]
 
 
 @frozen(kw_only=True)
 class TasOptions:
-    rounds: int = _option(30, "workflow executions the objectives average over", _positive)
-    max_interval: int = _option(
-        10, "largest probing interval (executions); the URC may also choose max_interval+1: never probe", _positive
+    rounds: int = option(30, "workflow executions the objectives average over", positive)
+    max_interval: int = option(
+        10, "largest probing interval (executions); the URC may also choose max_interval+1: never probe", positive
     )
-    backup_levels: str = _option(
+    backup_levels: str = option(
         f"{MAS5.failure_rate:g},0.3,1.0",
         "failure rate of the backup (MAS5) per health level, comma-separated, from healthy (the table's) to worst",
     )
-    degrade: float = _option(0.05, "per execution, probability that the backup gets one level worse", _probability)
-    recover: float = _option(0.1, "per execution, probability that the backup gets one level better", _probability)
-    peak_start: float = _option(0.1, "per execution, probability that normal load turns to peak load", _probability)
-    peak_end: float = _option(0.2, "per execution, probability that peak load turns to normal", _probability)
-    primary_failure: float = _option(
-        MAS1.failure_rate, "failure rate of the primary provider (MAS1) at normal load", _probability
+    degrade: float = option(0.05, "per execution, probability that the backup gets one level worse", probability)
+    recover: float = option(0.1, "per execution, probability that the backup gets one level better", probability)
+    peak_start: float = option(0.1, "per execution, probability that normal load turns to peak load", probability)
+    peak_end: float = option(0.2, "per execution, probability that peak load turns to normal", probability)
+    primary_failure: float = option(
+        MAS1.failure_rate, "failure rate of the primary provider (MAS1) at normal load", probability
     )
-    primary_failure_peak: float = _option(
+    primary_failure_peak: float = option(
         2 * MAS1.failure_rate,
         "failure rate of the primary provider at peak load (assumed: twice the table's)",
-        _probability,
+        probability,
     )
-    p_vital: float = _option(
+    p_vital: float = option(
         0.75,
         "probability that an execution analyses vital parameters, else it is a panic-button alarm (TAS: 0.75)",
-        _probability,
+        probability,
     )
-    p_alarm: float = _option(1 / 3, "probability that an analysis asks for an alarm (TAS: 1/3)", _probability)
-    p_drug: float = _option(1 / 3, "probability that an analysis asks for a drug change (TAS: 1/3)", _probability)
-    p_dose: float = _option(
-        1 / 3, "probability that an analysis asks for a dose change (TAS: 1/3); the rest: patient ok", _probability
+    p_alarm: float = option(1 / 3, "probability that an analysis asks for an alarm (TAS: 1/3)", probability)
+    p_drug: float = option(1 / 3, "probability that an analysis asks for a drug change (TAS: 1/3)", probability)
+    p_dose: float = option(
+        1 / 3, "probability that an analysis asks for a dose change (TAS: 1/3); the rest: patient ok", probability
     )
-    probe_cost: float = _option(MAS5.cost, "cost of a probe (a test invocation of the backup)", validators.ge(0.0))
-    response_time: bool = _option(False, "add a third objective: expected response time per execution (ms)")
+    probe_cost: float = option(MAS5.cost, "cost of a probe (a test invocation of the backup)", validators.ge(0.0))
+    response_time: bool = option(False, "add a third objective: expected response time per execution (ms)")
 
 
 def scenario(options: TasOptions) -> Scenario:
@@ -156,17 +148,17 @@ def build(options: TasOptions) -> SystemModel:
         observation=("bhat", "load"),
         objectives=objectives,
         baselines=[
-            *(Baseline(name=f"every-{k}", values={"c": k}) for k in range(1, s.max_interval + 1)),
+            *Baseline.sweep("c", range(1, s.max_interval + 1), "every-{}"),
             Baseline(name="never", values={"c": never}),
         ],
         context=s,
     )
 
 
-def plot_policy(system: SystemModel, table, path: Path) -> None:
+def plot_policy(system: SystemModel, table: PolicyTable, path: Path) -> None:
     from parley_plugins.tas.plot import draw_policy
 
-    draw_policy(system.context, {valuation: values["c"] for valuation, values in table.items()}, path)
+    draw_policy(system.context, table.values_of("c"), path)
 
 
 CASE_STUDY = CaseStudy(

@@ -15,7 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import attrs
-from attrs import field, frozen, validators
+from attrs import frozen, validators
 
 from parley_core import (
     Baseline,
@@ -24,9 +24,12 @@ from parley_core import (
     Direction,
     Objective,
     OptionError,
+    PolicyTable,
     Service,
     SystemModel,
     hookimpl,
+    option,
+    positive,
 )
 from parley_plugins.turtlebot import published
 from parley_plugins.turtlebot.generator import prism_model
@@ -37,60 +40,30 @@ PAPER_OBSTACLES = "0:3,0:4,0:5,1:3,2:3,3:3,4:0,4:1,5:1,4:4,4:6,5:6"
 """The cells where the paper's sampled motions crash (and which its model gives no motions)."""
 
 
-def _positive(_instance, attribute, value) -> None:
-    if value <= 0:
-        raise ValueError(f"option {attribute.name} must be positive, got {value}")
-
-
 _fraction = [validators.gt(0.0), validators.le(1.0)]
 
 
 @frozen(kw_only=True)
 class TurtlebotOptions:
-    model: Path | None = field(
-        default=None,
-        metadata={
-            "help": "the paper's models/turtlebot/model.prism: use its Gazebo-sampled motions and controller; default: simulate"
-        },
+    model: Path | None = option(
+        None,
+        "the paper's models/turtlebot/model.prism: use its Gazebo-sampled motions and controller; default: simulate",
     )
-    repair: bool = field(
-        default=True,
-        metadata={"help": "with model=: read its south moves as meant (the file sends them to the top row)"},
-    )
-    size: int = field(default=7, validator=validators.ge(2), metadata={"help": "cells per side (simulated motions)"})
-    start: str = field(default="1:0", metadata={"help": "start cell X:Y (simulated motions)"})
-    target: str = field(default="3:5", metadata={"help": "target cell X:Y (simulated motions)"})
-    obstacles: str = field(default=PAPER_OBSTACLES, metadata={"help": "obstacle cells X:Y,X:Y,... (simulated motions)"})
-    left_wheel: float = field(
-        default=0.99, validator=_fraction, metadata={"help": "left wheel power relative to the right one"}
-    )
-    heading_noise: float = field(
-        default=8.0, validator=validators.ge(0.0), metadata={"help": "heading error, standard deviation in degrees"}
-    )
-    turn_noise: float = field(
-        default=5.0, validator=validators.ge(0.0), metadata={"help": "extra heading error per quarter turn, degrees"}
-    )
-    distance_noise: float = field(
-        default=0.05,
-        validator=validators.ge(0.0),
-        metadata={"help": "error of a move's length, relative standard deviation"},
-    )
-    samples: int = field(
-        default=1000, validator=_positive, metadata={"help": "Monte Carlo draws per cell, heading and move"}
-    )
-    motion_seed: int = field(
-        default=0, metadata={"help": "seed of the Monte Carlo draws of the motions (the search has its own, --seed)"}
-    )
-    max_period: int = field(default=5, validator=_positive, metadata={"help": "longest localisation period (moves)"})
-    horizon: int = field(
-        default=200,
-        validator=_positive,
-        metadata={"help": "steps of the energy objective C<=horizon (a move is 3 steps)"},
-    )
-    move_cost: float = field(default=1.0, validator=validators.ge(0.0), metadata={"help": "energy of a move"})
-    localisation_cost: float = field(
-        default=5.0, validator=validators.ge(0.0), metadata={"help": "energy of a localisation"}
-    )
+    repair: bool = option(True, "with model=: read its south moves as meant (the file sends them to the top row)")
+    size: int = option(7, "cells per side (simulated motions)", validators.ge(2))
+    start: str = option("1:0", "start cell X:Y (simulated motions)")
+    target: str = option("3:5", "target cell X:Y (simulated motions)")
+    obstacles: str = option(PAPER_OBSTACLES, "obstacle cells X:Y,X:Y,... (simulated motions)")
+    left_wheel: float = option(0.99, "left wheel power relative to the right one", _fraction)
+    heading_noise: float = option(8.0, "heading error, standard deviation in degrees", validators.ge(0.0))
+    turn_noise: float = option(5.0, "extra heading error per quarter turn, degrees", validators.ge(0.0))
+    distance_noise: float = option(0.05, "error of a move's length, relative standard deviation", validators.ge(0.0))
+    samples: int = option(1000, "Monte Carlo draws per cell, heading and move", positive)
+    motion_seed: int = option(0, "seed of the Monte Carlo draws of the motions (the search has its own, --seed)")
+    max_period: int = option(5, "longest localisation period (moves)", positive)
+    horizon: int = option(200, "steps of the energy objective C<=horizon (a move is 3 steps)", positive)
+    move_cost: float = option(1.0, "energy of a move", validators.ge(0.0))
+    localisation_cost: float = option(5.0, "energy of a localisation", validators.ge(0.0))
 
 
 SIMULATION_OPTIONS = (
@@ -185,15 +158,15 @@ def build(options: TurtlebotOptions) -> SystemModel:
                 description=f"expected energy of moves and localisations within {options.horizon} steps",
             ),
         ],
-        baselines=[Baseline(name=f"period-{k}", values={"c": k}) for k in range(1, options.max_period + 1)],
+        baselines=Baseline.sweep("c", range(1, options.max_period + 1), "period-{}"),
         context=world,
     )
 
 
-def plot_policy(system: SystemModel, table, path: Path) -> None:
+def plot_policy(system: SystemModel, table: PolicyTable, path: Path) -> None:
     from parley_plugins.turtlebot.plot import draw_policy
 
-    draw_policy(system.context, {valuation: values["c"] for valuation, values in table.items()}, path)
+    draw_policy(system.context, table.values_of("c"), path)
 
 
 CASE_STUDY = CaseStudy(

@@ -113,7 +113,7 @@ def check(world: World) -> World:
         raise OptionError(
             f"no obstacle-free path joins the start {world.start} and the target {world.target}; move or remove obstacles"
         )
-    for (x, y, heading, move), outcomes in world.motions.items():
+    for (x, y, _heading, move), outcomes in world.motions.items():
         for outcome, _ in outcomes:
             nx, ny = x + outcome.dx, y + outcome.dy
             if outcome.kind == "move" and not (0 <= nx < world.size and 0 <= ny < world.size):

@@ -26,53 +26,49 @@ from parley_core import (
     Service,
     SystemModel,
     hookimpl,
+    option,
+    probability,
 )
 from parley_plugins.web_ids.generator import KNOWN, MAX_THRESHOLD, STEPS_PER_ROUND, prism_model
 
-_probability = [validators.ge(0.0), validators.le(1.0)]
 _cost = [validators.ge(0.0)]
 
 
 @frozen(kw_only=True)
 class WebIdsOptions:
-    rounds: int = field(
-        default=50,
-        validator=validators.ge(1),
-        metadata={"help": f"rounds (hours) both objectives look at; a round is {STEPS_PER_ROUND} DTMC steps"},
+    rounds: int = option(
+        50, f"rounds (hours) both objectives look at; a round is {STEPS_PER_ROUND} DTMC steps", validators.ge(1)
     )
-    start_hour: int = field(
-        default=0,
-        validator=[validators.ge(0), validators.le(23)],
-        metadata={"help": "hour of the day at the start (0..23)"},
-    )
+    start_hour: int = option(0, "hour of the day at the start (0..23)", validators.ge(0), validators.le(23))
     attack_a: float = field(
         default=0.3,
         converter=float,
-        validator=_probability,
+        validator=probability,
         metadata={"help": "probability per round that a clean A is compromised"},
     )
     attack_b: float = field(
         default=0.3,
         converter=float,
-        validator=_probability,
+        validator=probability,
         metadata={"help": "probability per round that B is compromised through a compromised A"},
     )
     stale: float = field(
         default=0.3,
         converter=float,
-        validator=_probability,
+        validator=probability,
         metadata={"help": "probability per round that the IDS's rules are stale"},
     )
     ids_error: float = field(
         default=1.0,
         converter=float,
-        validator=_probability,
+        validator=probability,
         metadata={"help": "weight of the published IDS's errors: 1 the published IDS, 0 a perfect one"},
     )
-    restore_at: int = field(
-        default=3,
-        validator=[validators.ge(0), validators.le(KNOWN)],
-        metadata={"help": f"the controller restores A when the estimate reaches this (0..{KNOWN})"},
+    restore_at: int = option(
+        3,
+        f"the controller restores A when the estimate reaches this (0..{KNOWN})",
+        validators.ge(0),
+        validators.le(KNOWN),
     )
     scan_cost: float = field(default=25.0, converter=float, validator=_cost, metadata={"help": "cost of one scan of A"})
     breach_cost: float = field(
@@ -137,7 +133,7 @@ def _baseline_name(threshold: int) -> str:
 def plot_policy(system: SystemModel, table: PolicyTable, path: Path) -> None:
     from parley_plugins.web_ids.plot import draw_policy
 
-    draw_policy({valuation: values["th"] for valuation, values in table.items()}, path)
+    draw_policy(table.values_of("th"), path)
 
 
 CASE_STUDY = CaseStudy(

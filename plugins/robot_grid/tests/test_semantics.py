@@ -10,12 +10,9 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from parley_core.augment import augment
-from parley_core.evaluate.storm import StormEvaluator
-from parley_core.plugins import load_registry
+from parley_core import testing
+from parley_plugins.robot_grid import CASE_STUDY as CASE
 from parley_plugins.robot_grid.planner import MOVES
-
-CASE = load_registry().get("robot_grid")
 
 
 def reference(grid, moves, policy, p, horizon, move_cost=1.0, localisation_cost=5.0):
@@ -94,11 +91,10 @@ def test_storm_on_the_generated_model_matches_an_independent_chain(size, seed, p
     options = CASE.options([f"size={size}", f"seed={seed}", f"p={p}", f"horizon={horizon}", "max_interval=5"])
     system = CASE.build(options)
     grid, moves = system.context
-    family = augment(system)
+    family = testing.family(system)
     rng = np.random.default_rng(seed)
     policies = np.vstack([np.full(len(family.decisions), 1), rng.integers(1, 6, size=(4, len(family.decisions)))])
-    with StormEvaluator(family, workers=1) as storm:
-        values = storm.evaluate(policies)
+    values = testing.values(family, np.asarray(policies))
     for row, (success, cost) in zip(policies, values):
         policy = {d.valuation: int(v) for d, v in zip(family.decisions, row)}
         expected_success, expected_cost = reference(grid, moves, policy, p, horizon)
@@ -110,9 +106,8 @@ def test_without_deviations_the_robot_follows_its_plan_and_pays_per_move(tmp_pat
     path = tmp_path / "m.csv"
     path.write_text("0,0,0,0\n0,10,0,0\n0,0,0,0\n0,0,0,0\n")  # the plan takes 6 moves
     system = CASE.build(CASE.options([f"map={path}", "p=0"]))
-    family = augment(system)
-    with StormEvaluator(family, workers=1) as storm:
-        values = storm.evaluate([[k] * len(family.decisions) for k in (1, 2, 3, 7)])
+    family = testing.family(system)
+    values = testing.values(family, np.array([[k] * len(family.decisions) for k in (1, 2, 3, 7)]))
     assert values[:, 0] == pytest.approx([1.0] * 4)
     assert values[:, 1] == pytest.approx([6 + 5 * 6, 6 + 5 * 3, 6 + 5 * 2, 6])
 
@@ -122,9 +117,8 @@ def test_localising_after_every_move_on_a_map_without_obstacles_always_succeeds(
     # move brings it back on its plan: it reaches the target with probability 1.
     path = tmp_path / "empty.csv"
     path.write_text("\n".join(["0,0,0,0,0"] * 5) + "\n")
-    family = augment(CASE.build(CASE.options([f"map={path}", "p=0.1"])))
-    with StormEvaluator(family, workers=1) as storm:
-        success = storm.evaluate([[1] * len(family.decisions), [10] * len(family.decisions)])[:, 0]
+    family = testing.family(CASE.build(CASE.options([f"map={path}", "p=0.1"])))
+    success = testing.values(family, np.array([[1] * len(family.decisions), [10] * len(family.decisions)]))[:, 0]
     assert success[0] == pytest.approx(1.0, abs=1e-9)
     # Rarely localising, the robot may believe it has arrived while it has drifted elsewhere:
     # it then stops for good (no move at the target, no localisation without a move), as in

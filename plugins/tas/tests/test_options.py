@@ -4,11 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from parley_core import Direction, OptionError
-from parley_core.augment import augment
-from parley_core.plugins import load_registry
-
-CASE = load_registry().get("tas")
+from parley_core import Direction, OptionError, testing
+from parley_plugins.tas import CASE_STUDY as CASE
 
 
 def test_the_system_model_names_its_service_observation_objectives_and_baselines():
@@ -22,7 +19,7 @@ def test_the_system_model_names_its_service_observation_objectives_and_baselines
     ]
     assert [b.name for b in system.baselines] == [*(f"every-{k}" for k in range(1, 11)), "never"]
     assert [b.values["c"] for b in system.baselines] == list(range(1, 12))
-    family = augment(system)
+    family = testing.family(system)
     assert family.names == ("c_0_0", "c_0_1", "c_1_0", "c_1_1", "c_2_0", "c_2_1")
 
 
@@ -33,7 +30,7 @@ def test_response_time_is_an_optional_third_objective():
 
 
 def test_more_health_levels_give_more_decisions():
-    family = augment(CASE.build(CASE.options(["backup_levels=0.05,0.1,0.2,0.5,1", "max_interval=3"])))
+    family = testing.family(CASE.build(CASE.options(["backup_levels=0.05,0.1,0.2,0.5,1", "max_interval=3"])))
     assert len(family.decisions) == 10
     assert family.highs == (4,) * 10
 

@@ -18,12 +18,9 @@ from collections import defaultdict
 import numpy as np
 import pytest
 
-from parley_core.augment import augment
-from parley_core.evaluate.storm import StormEvaluator
-from parley_core.plugins import load_registry
+from parley_core import testing
 from parley_core.testing import storm_values
-
-CASE = load_registry().get("tas")
+from parley_plugins.tas import CASE_STUDY as CASE
 
 # The provider table (docs/tas.md), written out again so that a change of the generator's table shows.
 PRIMARY = {"cost": 4.0, "time": 22.0}  # MAS1 (failure rate: an option, by load)
@@ -86,9 +83,8 @@ def reference(o, policy) -> tuple[float, float, float]:
 
 
 def evaluate(options, policies):
-    family = augment(CASE.build(options))
-    with StormEvaluator(family, workers=1) as storm:
-        return family, storm.evaluate(np.array(policies))
+    family = testing.family(CASE.build(options))
+    return family, testing.values(family, np.array(policies))
 
 
 def uniform(options, c):
@@ -132,13 +128,12 @@ def uniform(options, c):
 )
 def test_storm_on_the_generated_model_matches_an_independent_computation(settings):
     options = CASE.options(settings)
-    family = augment(CASE.build(options))
+    family = testing.family(CASE.build(options))
     rng = np.random.default_rng(len(settings))
     n = len(family.decisions)
     policies = [np.full(n, k) for k in (1, 2, options.max_interval + 1)]
     policies += list(rng.integers(1, options.max_interval + 2, size=(6, n)))
-    with StormEvaluator(family, workers=1) as storm:
-        values = storm.evaluate(np.array(policies))
+    values = testing.values(family, np.array(policies))
     assert [o.name for o in family.objectives] == ["failure", "cost", "response_time"]
     for row, got in zip(policies, values):
         policy = {d.valuation: int(v) for d, v in zip(family.decisions, row)}
@@ -186,7 +181,7 @@ def test_without_drift_the_estimate_is_always_right():
     # reachable, every policy fails equally often, and that rate has a closed form over the
     # load phase's distribution (a two-state chain, computed here directly).
     options = CASE.options(["rounds=15", "max_interval=4", "degrade=0", "recover=0"])
-    family = augment(CASE.build(options))
+    family = testing.family(CASE.build(options))
     policies = {"every-1": [1] * 6, "mixed": [1, 3, 5, 2, 4, 5], "never": [5] * 6}
     failures = []
     for row in policies.values():

@@ -13,13 +13,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from parley_core.augment import augment
-from parley_core.plugins import load_registry
+from parley_core import testing
 from parley_core.testing import storm_values
+from parley_plugins.turtlebot import CASE_STUDY as CASE
 from parley_plugins.turtlebot import world_of
 from parley_plugins.turtlebot.world import CRASH, HEADINGS, OUT, STEP
 
-CASE = load_registry().get("turtlebot")
 SMALL = [
     "size=4",
     "start=0:0",
@@ -131,7 +130,7 @@ class Reference:
 @pytest.fixture(scope="module")
 def small():
     options = CASE.options(SMALL)
-    return world_of(options), augment(CASE.build(options))
+    return world_of(options), testing.family(CASE.build(options))
 
 
 def _policies(family, count, seed):
@@ -190,17 +189,14 @@ def test_without_noise_the_robot_follows_its_plan_and_never_needs_localising():
         else:
             assert (outcome.kind, outcome.dx, outcome.dy, HEADINGS[outcome.heading]) == ("move", *STEP[move], move)
         assert p == 1.0
-    family = augment(CASE.build(options))
+    family = testing.family(CASE.build(options))
     never = {d.name: 5 for d in family.decisions}
     (success,) = storm_values(family.prism, ['P=? [F "goal"]'], never)
     assert success == pytest.approx(1.0, abs=1e-12)
 
 
 def test_runs_decide_only_where_the_service_is_consulted():
-    from parley_core.pipeline import prepare
-
-    prepared = prepare(CASE, CASE.options(SMALL))
-    family, world = prepared.family, world_of(prepared.options)
+    family, world = testing.family(CASE, SMALL), world_of(CASE.options(SMALL))
     assert family.left_out and len(family.valuations) + len(family.left_out) == 4 * 4 * 4
     consulted = set()
     for k in range(1, 4):

@@ -6,12 +6,10 @@ from __future__ import annotations
 import pytest
 
 from parley_core import OptionError
-from parley_core.plugins import load_registry
+from parley_plugins.turtlebot import CASE_STUDY as CASE
 from parley_plugins.turtlebot import published, world_of
 from parley_plugins.turtlebot.kinematics import simulate
 from parley_plugins.turtlebot.world import CRASH, OUT, STEP, Outcome, parse_cells, shortest_moves
-
-CASE = load_registry().get("turtlebot")
 
 
 def test_cells_parse_and_bad_cells_say_how_to_write_them():

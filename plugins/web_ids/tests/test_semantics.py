@@ -14,13 +14,8 @@ import attrs
 import numpy as np
 import pytest
 
-from parley_core import Direction, Objective, OptionError
-from parley_core.augment import augment
-from parley_core.evaluate.quotient import QuotientEvaluator
-from parley_core.evaluate.storm import StormEvaluator
-from parley_core.plugins import load_registry
-
-CASE = load_registry().get("web_ids")
+from parley_core import Direction, Objective, OptionError, testing
+from parley_plugins.web_ids import CASE_STUDY as CASE
 
 NEVER = 11  # a threshold above every estimate
 NIGHT, BUSINESS, EVENING = range(9), range(9, 17), range(17, 24)
@@ -55,7 +50,7 @@ def reference(options, policy) -> tuple[float, float]:
         when = period(hour)
         following: dict[tuple[int, int], float] = {}
 
-        def land(state, p):
+        def land(state, p, following=following):
             following[state] = following.get(state, 0.0) + p
 
         for (a, b), p in start.items():
@@ -95,12 +90,11 @@ def family_of(options, *, extra: list[Objective] = ()):
     system = CASE.build(options)
     if extra:
         system = attrs.evolve(system, objectives=[*system.objectives, *extra])
-    return augment(system)
+    return testing.family(system)
 
 
 def storm(family, policies) -> np.ndarray:
-    with StormEvaluator(family, workers=1) as evaluator:
-        return evaluator.evaluate(np.asarray(policies, dtype=np.int64).reshape(-1, len(family.decisions)))
+    return testing.values(family, np.asarray(policies, dtype=np.int64).reshape(-1, len(family.decisions)))
 
 
 def uniform(family, threshold: int) -> list[int]:
@@ -247,9 +241,8 @@ def test_the_quotient_evaluator_handles_both_objectives_and_agrees_with_storm():
     family = family_of(CASE.options(["rounds=10"]))
     rng = np.random.default_rng(3)
     policies = rng.integers(0, NEVER + 1, size=(12, 6))
-    with QuotientEvaluator(family, workers=1) as quotient:
-        assert quotient.fallback == ()
-        fast = quotient.evaluate(policies)
+    assert testing.left_to_storm(family) == ()
+    fast = testing.values(family, policies, evaluator="quotient")
     assert fast == pytest.approx(storm(family, policies), rel=1e-9, abs=1e-9)
 
 
