@@ -28,12 +28,8 @@ hookimpl = pluggy.HookimplMarker(PROJECT)
 def parley_case_studies() -> list[CaseStudy]:  # type: ignore[empty-body]  # a hookspec: only its signature is used
     """Return the case studies this plugin provides.
 
-    Each :class:`~parley_core.casestudy.CaseStudy` has a unique ``name`` (lower case,
-    digits and underscores; it is what ``parley run NAME`` takes), a one-line
-    ``description``, a frozen attrs ``options_type`` whose fields have defaults and
-    ``metadata={"help": ...}``, a ``build(options) -> SystemModel`` function, optionally a
-    ``plot_policy(system, table, path)`` function, and ``quick`` options for a small instance
-    that the conformance suite builds and searches.
+    Each is a :class:`~parley_core.casestudy.CaseStudy`; its fields (name, options, build,
+    plot, quick options, requirement settings, pruning) are documented once, in that class.
 
     Two plugins returning the same name is an error naming both. The hook is called once per
     plugin manager; ``build`` is called once per run.

@@ -25,7 +25,7 @@ from parley_core.errors import ModelError, OptionError
 from parley_core.files import read_text
 from parley_core.model import Baseline, Decision, DecisionKind, Direction, Family, Objective, Service, SystemModel
 from parley_core.prism import program as prism
-from parley_core.prism import rewrite
+from parley_core.prism import rewrite, sandbox
 
 
 def parse_decision(text: str) -> Service:
@@ -199,7 +199,7 @@ def _check_storm_survives(path: Path, make, values) -> None:
     """Storm kills the whole process with SIGFPE on an integer division by zero in a guard,
     update or probability, also one that only some decision values or states reach: build
     ``make()`` in a forked child first."""
-    crash = prism.build_crashes(make, values)
+    crash = sandbox.build_crashes(make, values)
     if crash is not None:
         raise ModelError(
             f"Storm crashes (signal {crash}) building model {path}, most likely on an integer division by zero "

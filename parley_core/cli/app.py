@@ -18,3 +18,11 @@ experiment_app = typer.Typer(
     help="Campaigns: many instances x repetitions, a resumable store, reports (Tables 2 and 3, Fig. 4).",
 )
 app.add_typer(experiment_app, name="experiment")
+
+
+@app.callback()
+def _entry() -> None:
+    """Synthesize uncertainty reduction controllers (URCs) with formal guarantees."""
+    from parley_core.prism.program import quiet_storm
+
+    quiet_storm()  # parley reports Storm's errors itself, in one line; set once per process

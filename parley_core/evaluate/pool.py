@@ -20,13 +20,21 @@ def default_workers(workers: int | None = None) -> int:
     return max(1, workers if workers is not None else (os.cpu_count() or 1))
 
 
+def _start(initializer: Callable[..., Any] | None, initargs: tuple[Any, ...]) -> None:
+    from parley_core.prism.program import quiet_storm
+
+    quiet_storm()  # a worker is an entry point: Storm's log level is set once per process
+    if initializer is not None:
+        initializer(*initargs)
+
+
 def spawn_pool(
     workers: int, initializer: Callable[..., Any] | None = None, initargs: tuple[Any, ...] = ()
 ) -> ProcessPoolExecutor:
-    """A process pool of ``workers`` spawned processes."""
+    """A process pool of ``workers`` spawned processes, each started by ``initializer(*initargs)``."""
     return ProcessPoolExecutor(
         max_workers=workers,
         mp_context=multiprocessing.get_context("spawn"),
-        initializer=initializer,
-        initargs=initargs,
+        initializer=_start,
+        initargs=(initializer, initargs),
     )

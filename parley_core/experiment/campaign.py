@@ -154,7 +154,9 @@ def run_spec(spec: RunSpec) -> RunRecord:
     """Run one campaign run in this process (one worker: campaigns parallelise over runs)."""
     from parley_core.pipeline import prepare, run
     from parley_core.plugins import load_registry
+    from parley_core.prism.program import quiet_storm
 
+    quiet_storm()  # on a Dask worker this is the entry point
     case = load_registry().get(spec.case)
     options = case.options(spec.assignments)
     prepared = prepare(case, options)

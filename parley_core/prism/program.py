@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 
 import stormpy
 import stormpy.developer as storm_dev
@@ -21,7 +21,11 @@ from parley_core.errors import ModelError
 
 
 def quiet_storm() -> None:
-    """Stop Storm from logging its own errors to stderr; parley reports them as exceptions."""
+    """Stop Storm from logging its own errors to stderr; parley reports them as exceptions.
+
+    Storm's log level is process-wide, so the entry points set it once: the ``parley``
+    command and every worker process parley starts. A library user who wants Storm quiet
+    too calls it once."""
     storm_dev.set_log_level(storm_dev.LogLevel.OFF)
 
 
@@ -36,7 +40,6 @@ def storm_message(exc: BaseException) -> str:
 
 def parse_program(text: str, *, origin: str = "model") -> PrismProgram:
     """Parse PRISM text as written (no simplification), or raise ModelError with Storm's message."""
-    quiet_storm()
     fd, path = tempfile.mkstemp(suffix=".prism", prefix="parley-")
     try:
         with os.fdopen(fd, "w") as handle:
@@ -50,7 +53,6 @@ def parse_program(text: str, *, origin: str = "model") -> PrismProgram:
 
 def parse_properties(formulas: Iterable[str], program: PrismProgram, *, origin: str = "property") -> list:
     """Parse each formula against the program; an error names the formula and Storm's message."""
-    quiet_storm()
     parsed = []
     for formula in formulas:
         try:
@@ -91,32 +93,6 @@ def find_variable(program: PrismProgram, name: str):
             if variable.name == name:
                 return variable
     return None
-
-
-def build_crashes(make: Callable[[], PrismProgram], values: Mapping[str, int]) -> int | None:
-    """Make a program with ``make``, set its undefined constants to ``values`` and build it,
-    all in a forked child; return the signal that killed the child, or None (also when it
-    raised: the parent reports errors when it does the same work). Storm's builder kills the
-    whole process with SIGFPE on an integer division by zero in a guard, update or
-    probability, and so does its constant substitution on ``const int k = c/0`` (found by the
-    fuzz test); a user's model must not take parley down with it."""
-    if not hasattr(os, "fork"):
-        return None
-    pid = os.fork()
-    if pid == 0:  # the child: build, then leave at once whatever happened
-        import faulthandler
-
-        faulthandler.disable()  # a crash here is the expected answer, not worth a dump
-        code = 0
-        try:
-            program = make()
-            program.substitute_constants()
-            stormpy.build_model(define_constants(program, values))
-        except BaseException:
-            code = 1
-        os._exit(code)
-    _, status = os.waitpid(pid, 0)
-    return os.WTERMSIG(status) if os.WIFSIGNALED(status) else None
 
 
 def integer_constants(program: PrismProgram, values: Mapping[str, int]) -> dict:
