@@ -1,7 +1,7 @@
 """Quality of fronts: non-domination, hypervolume, spread, knee point.
 
 Values are given in the objectives' own units with their directions (a tuple of
-:class:`~parley_core.model.Direction`); each function converts to minimisation itself.
+:class:`~parley_core.model.Direction`); each function converts to minimization itself.
 Hypervolume and non-domination come from moocore.
 """
 
@@ -15,7 +15,7 @@ import numpy as np
 from parley_core.model import Direction, Objective
 
 
-def _maximise(directions: Sequence[Direction]) -> list[bool]:
+def _maximize(directions: Sequence[Direction]) -> list[bool]:
     return [d is Direction.MAX for d in directions]
 
 
@@ -28,7 +28,7 @@ def nondominated(values: np.ndarray, directions: Sequence[Direction]) -> np.ndar
     values = np.asarray(values, dtype=float).reshape(-1, len(directions))
     if len(values) == 0:
         return np.zeros(0, dtype=bool)
-    return np.asarray(moocore.is_nondominated(values, maximise=_maximise(directions), keep_weakly=False))
+    return np.asarray(moocore.is_nondominated(values, maximise=_maximize(directions), keep_weakly=False))
 
 
 def reference_point(objectives: Sequence[Objective], *sets: np.ndarray) -> np.ndarray:
@@ -70,9 +70,9 @@ def spread(
     """Deb et al.'s spread (Delta, NSGA-II paper, 2002) of a two-objective front; lower is better.
 
     Delta = (d_f + d_l + sum |d_i - mean d|) / (d_f + d_l + (N - 1) mean d), with d_i the
-    distances between neighbouring points and d_f, d_l the distances from the front's end
+    distances between neighboring points and d_f, d_l the distances from the front's end
     points to ``extremes`` (two points, e.g. the ends of a reference front; without them
-    d_f = d_l = 0 and only the uniformity of the spacing counts). Objectives are normalised
+    d_f = d_l = 0 and only the uniformity of the spacing counts). Objectives are normalized
     to [0, 1] by ``bounds`` (ideal, nadir) or by the front's own range. Fewer than two
     points give 1.0.
     """
@@ -108,7 +108,7 @@ def igd_plus(
     values: np.ndarray, reference: np.ndarray, directions: Sequence[Direction], *, bounds: tuple[np.ndarray, np.ndarray]
 ) -> float:
     """IGD+ (Ishibuchi et al., EMO 2015; moocore's ``igd_plus``) of a front against a
-    reference front, both normalised to [0, 1] by ``bounds`` (ideal, nadir); lower is
+    reference front, both normalized to [0, 1] by ``bounds`` (ideal, nadir); lower is
     better, 0 when the front covers the reference. An empty front gives infinity."""
     points, ref = _as_min(values, directions), _as_min(reference, directions)
     if len(points) == 0:
@@ -120,8 +120,8 @@ def igd_plus(
 
 
 def mean_gap(values: np.ndarray, directions: Sequence[Direction]) -> float:
-    """The paper's "spread" (evaluation.py): mean distance between neighbouring points after
-    normalising each objective by the front's own range; 1.5 when undefined, as there."""
+    """The paper's "spread" (evaluation.py): mean distance between neighboring points after
+    normalizing each objective by the front's own range; 1.5 when undefined, as there."""
     points = _as_min(values, directions)
     span = points.max(axis=0) - points.min(axis=0) if len(points) else np.zeros(len(directions))
     if len(points) < 2 or (span == 0).any():
@@ -132,7 +132,7 @@ def mean_gap(values: np.ndarray, directions: Sequence[Direction]) -> float:
 
 
 def knee(values: np.ndarray, directions: Sequence[Direction]) -> int:
-    """Index of the point closest to the ideal point after normalising each objective to [0, 1]."""
+    """Index of the point closest to the ideal point after normalizing each objective to [0, 1]."""
     points = _as_min(values, directions)
     if len(points) == 0:
         raise ValueError("no points")

@@ -21,14 +21,14 @@ _T = TypeVar("_T")
 
 
 class Direction(enum.Enum):
-    """Whether an objective is to be minimised or maximised."""
+    """Whether an objective is to be minimized or maximized."""
 
     MIN = "min"
     MAX = "max"
 
     @property
     def sign(self) -> float:
-        """+1 for MIN, -1 for MAX: multiply a value by it to get a value to minimise."""
+        """+1 for MIN, -1 for MAX: multiply a value by it to get a value to minimize."""
         return 1.0 if self is Direction.MIN else -1.0
 
 
@@ -54,7 +54,7 @@ def _tuple_of(value: Iterable[Any], item_type: type[_T]) -> tuple[_T, ...]:
 
 @frozen(kw_only=True)
 class Objective:
-    """A quantity to optimise, given as a PCTL property over the system model.
+    """A quantity to optimize, given as a PCTL property over the system model.
 
     ``formula`` is a property of the form ``P=? [...]`` or ``R{"r"}=? [...]``; ``reference`` is
     the worst value still of interest (the hypervolume reference), or None to derive one from
@@ -162,7 +162,7 @@ class SystemModel:
     services: tuple[Service, ...] = field(converter=_services, validator=validators.min_len(1))
     observation: tuple[str, ...] = field(converter=tuple[str, ...], validator=validators.min_len(1))
     objectives: tuple[Objective, ...] = field(converter=_objectives)
-    """What to optimise; may be empty only for augmentation without a search."""
+    """What to optimize; may be empty only for augmentation without a search."""
     baselines: tuple[Baseline, ...] = field(converter=_baselines, factory=tuple)
     description: str = ""
     context: Any = field(default=None, eq=False, repr=False)

@@ -129,7 +129,7 @@ def run(
     kind = EvaluatorKind.of(evaluator)
     family = prepared.family
     if not family.objectives:
-        raise OptionError("the model has no objectives to optimise; give a properties file")
+        raise OptionError("the model has no objectives to optimize; give a properties file")
     timings = dict(prepared.timings)
     directions = [o.direction for o in family.objectives]
     reporter.stage(f"{kind.value} evaluator")

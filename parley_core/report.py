@@ -131,7 +131,7 @@ def summary(result: RunResult) -> dict[str, Any]:
         },
         "selected": {
             "policy": result.front.policies[result.selected].name,
-            "rule": "knee (closest to the ideal point, normalised)",
+            "rule": "knee (closest to the ideal point, normalized)",
         },
         "timings_seconds": timings,
         "versions": versions(),

@@ -1,6 +1,6 @@
 """Pareto search: pymoo NSGA-II over the integer decisions of a family.
 
-The problem is vectorised (the evaluator sees a whole population at once) and memoised: a
+The problem is vectorized (the evaluator sees a whole population at once) and memoized: a
 :class:`~parley_core.evaluate.cache.CachingEvaluator` keeps every policy evaluated with its
 values, so no policy is evaluated twice and the final front is taken from everything seen,
 not only from the last population. The initial population holds the baseline policies, so
@@ -92,7 +92,7 @@ class EvaluationBudget(Termination):
 
 
 class PolicyProblem(Problem):
-    """pymoo's view of a family: integer genes in each decision's range, objectives to minimise."""
+    """pymoo's view of a family: integer genes in each decision's range, objectives to minimize."""
 
     def __init__(
         self,

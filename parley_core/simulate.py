@@ -69,9 +69,9 @@ def family_for_controller(model: Path, controller: URC, props: Path) -> Family:
 def _wilson(successes: int, n: int) -> tuple[float, float]:
     p = successes / n
     denominator = 1 + Z99**2 / n
-    centre = (p + Z99**2 / (2 * n)) / denominator
+    center = (p + Z99**2 / (2 * n)) / denominator
     half = Z99 * math.sqrt(p * (1 - p) / n + Z99**2 / (4 * n * n)) / denominator
-    return centre - half, centre + half
+    return center - half, center + half
 
 
 def simulate(

@@ -1,7 +1,7 @@
-"""The runtime URC: a synthesised policy as a controller file, and ``decide(observation)``.
+"""The runtime URC: a synthesized policy as a controller file, and ``decide(observation)``.
 
 A controller file (JSON, written by ``parley select``) holds the observation variables,
-the services, one decision per observation valuation the policy was synthesised for, the
+the services, one decision per observation valuation the policy was synthesized for, the
 valuations left out because no service is ever consulted there, and the policy's
 Storm-checked objective values. ``URC.decide`` refuses observations outside that domain
 with a clear error instead of guessing a default.
@@ -60,8 +60,8 @@ class URC:
                 "decision; check the system against the model"
             )
         raise ObservationError(
-            f"observation {shown} is outside the domain the controller was synthesised for; "
-            "check the sensor or synthesise for a larger domain"
+            f"observation {shown} is outside the domain the controller was synthesized for; "
+            "check the sensor or synthesize for a larger domain"
         )
 
     def _valuation(self, observation) -> tuple[int, ...]:

@@ -2,7 +2,7 @@
 
 The paper's ``models/turtlebot/model.prism`` holds its Gazebo-sampled motions, its movement
 controller and the URC as 196 ``evolve int decision_X_Y_H[1..5]`` parameters;
-``umc_controller.txt`` is one synthesised policy (values in ``decisions.txt`` order). For
+``umc_controller.txt`` is one synthesized policy (values in ``decisions.txt`` order). For
 that policy, the five fixed periods and ``--random`` random policies, this script checks with
 plain stormpy that
 

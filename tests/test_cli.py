@@ -175,7 +175,7 @@ def test_run_refuses_a_non_empty_output_directory(tmp_path):
     [
         (["run", "robot"], "unknown case study 'robot'; valid: robot_grid"),
         (["baseline", "robot_grid", "--set", "size"], "malformed option 'size'; write KEY=VALUE"),
-        (["baseline", "robot_grid", "--set", "colour=red"], "unknown option 'colour' for robot_grid"),
+        (["baseline", "robot_grid", "--set", "color=red"], "unknown option 'color' for robot_grid"),
         (["baseline", "robot_grid", "--set", "size=big"], "option size='big' for robot_grid: expected int"),
         (["baseline", "robot_grid", "--set", "p=0.5"], "'p' must be <= 0.333"),
         (["baseline", "robot_grid", "--set", "map=/no/such/map.csv"], "map file /no/such/map.csv does not exist"),

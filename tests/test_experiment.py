@@ -65,8 +65,8 @@ def test_planning(tmp_path):
         instances_from(ROBOT, ["seed"])
     with pytest.raises(OptionError, match="matches no file"):
         instances_from(ROBOT, [], str(tmp_path / "nothing*.csv"))
-    with pytest.raises(OptionError, match="unknown option 'colour'"):
-        plan("c", ROBOT, [("colour=red",)], [], 1, TINY)
+    with pytest.raises(OptionError, match="unknown option 'color'"):
+        plan("c", ROBOT, [("color=red",)], [], 1, TINY)
 
 
 def test_a12_and_mann_whitney():
@@ -86,7 +86,7 @@ def test_report_on_fronts_with_known_hypervolumes():
     baseline = [[0.8, 60.0], [0.5, 10.0]]
     records = [record("better", r, [[0.8, 60.0], [0.9, 70.0 - r * 0.1]], baseline) for r in range(10)]
     records += [record("worse", r, [[0.75, 70.0 - r * 0.1]], baseline) for r in range(10)]
-    rows = report.analyse(records, [(0.7, 80.0)])
+    rows = report.analyze(records, [(0.7, 80.0)])
     by = {r.instance: r for r in rows}
     assert by["better"].baseline_hv == pytest.approx(2.0)
     assert by["better"].hv[0] == pytest.approx(3.0)
@@ -96,7 +96,7 @@ def test_report_on_fronts_with_known_hypervolumes():
     assert by["better"].baseline_gap == 1.5 and by["better"].gap[0] == pytest.approx(2**0.5)
     assert (by["better"].gap_verdict, by["worse"].gap_verdict) == ("better", "same")
     # IGD+ against the union's non-dominated points in the box, (0.8, 60) and (0.9, 69.1),
-    # normalised by the box from the ideal (0.9, 10) to the bounds: the baseline misses the
+    # normalized by the box from the ideal (0.9, 10) to the bounds: the baseline misses the
     # second by 0.1 / 0.2 in success; repetition 9 of "better" holds both points
     assert by["better"].baseline_igd == pytest.approx(0.25)
     assert by["better"].igd[9] == pytest.approx(0.0)
@@ -109,7 +109,7 @@ def test_report_compares_with_published_fronts(tmp_path):
     records = [record("map_1", r, [[0.85, 60.0]], baseline) for r in range(10)]
     for r in range(10):
         (tmp_path / f"map_1_rep{r}.front.tsv").write_text("P\tcost\n0.81\t60.0\n")
-    rows = report.analyse(records, [(0.7, 80.0)], published=tmp_path)
+    rows = report.analyze(records, [(0.7, 80.0)], published=tmp_path)
     assert rows[0].published_hv[0] == pytest.approx(0.11 * 20)
     assert rows[0].published_verdict == "better"
 

@@ -44,7 +44,7 @@ def test_spread_of_evenly_spaced_points_is_zero_and_grows_with_unevenness():
     uneven = np.array([[0.0, 1.0], [0.1, 0.9], [1.0, 0.0]])
     # gaps: 0.1*sqrt2 and 0.9*sqrt2, mean 0.5*sqrt2 -> (0.4+0.4)/(2*0.5) = 0.8
     assert metrics.spread(uneven, [Direction.MIN, Direction.MIN]) == pytest.approx(0.8)
-    # extreme points 0.1 away (normalised) at both ends add d_f = d_l = 0.1
+    # extreme points 0.1 away (normalized) at both ends add d_f = d_l = 0.1
     extremes = np.array([[-0.1, 1.0], [1.1, 0.0]])
     expected = (0.1 + 0.1 + 0.8 * np.sqrt(2)) / (0.2 + 2 * 0.5 * np.sqrt(2))
     assert metrics.spread(

@@ -82,7 +82,7 @@ def test_select_the_knee_and_errors(run_dir, tmp_path):
 def test_the_runtime_urc_refuses_observations_it_was_not_made_for(run_dir, tmp_path):
     invoke("select", run_dir, "--out", tmp_path / "c.json")
     urc = URC.load(tmp_path / "c.json")
-    with pytest.raises(ObservationError, match="outside the domain the controller was synthesised for"):
+    with pytest.raises(ObservationError, match="outside the domain the controller was synthesized for"):
         urc.decide({"xhat": 6, "yhat": 0})
     with pytest.raises(ObservationError, match="missing yhat"):
         urc.decide({"xhat": 1})

@@ -1,4 +1,4 @@
-"""The ``parley`` command: the only place that prints, colours or chooses exit codes.
+"""The ``parley`` command: the only place that prints, colors or chooses exit codes.
 
 User errors (any :class:`~parley_core.errors.ParleyError`) end as one line on stderr,
 ``error: ...``, with exit status 2. Progress goes to stderr, so ``--json`` output on stdout

@@ -151,7 +151,7 @@ def plan(
 
 
 def run_spec(spec: RunSpec) -> RunRecord:
-    """Run one campaign run in this process (one worker: campaigns parallelise over runs)."""
+    """Run one campaign run in this process (one worker: campaigns parallelize over runs)."""
     from parley_core.pipeline import prepare, run
     from parley_core.plugins import load_registry
     from parley_core.prism.program import quiet_storm

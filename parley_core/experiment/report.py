@@ -5,11 +5,11 @@ success >= 0.7 and cost <= 80), each run's front and the instance's baseline are
 points that meet every bound, and measured against the bounds:
 
 - hypervolume with the bounds as reference point (:func:`parley_core.metrics.hypervolume`);
-- Deb's spread, normalised by the setting's box and with the extremes of all fronts of
+- Deb's spread, normalized by the setting's box and with the extremes of all fronts of
   that instance (every repetition and the baseline) as the reference extremes;
 - the paper's "spread" (:func:`parley_core.metrics.mean_gap`), for comparison with its Table 2;
 - IGD+ against the non-dominated union of all fronts of the instance inside the box
-  (normalised like the spread): how far a front stays from the best known trade-offs.
+  (normalized like the spread): how far a front stays from the best known trade-offs.
 
 Per instance and setting, the repetitions' gains over the baseline are tested against zero
 with a two-sided Mann-Whitney U at 0.05 (as the paper does, but pairing every repetition
@@ -115,7 +115,7 @@ def published_fronts(directory: Path, instance: str, n_objectives: int) -> list[
     return fronts
 
 
-def analyse(records: Sequence[RunRecord], settings: Sequence[Setting], published: Path | None = None) -> list[Row]:
+def analyze(records: Sequence[RunRecord], settings: Sequence[Setting], published: Path | None = None) -> list[Row]:
     by_instance: dict[str, list[RunRecord]] = defaultdict(list)
     for record in records:
         by_instance[record.instance].append(record)
@@ -248,7 +248,7 @@ def table2_document(
         "Per requirement setting (bounds), the number of instances where parley is significantly better / worse / "
         "not different from the baseline (Mann-Whitney U at 0.05 on the repetitions' gains against zero; A12 per "
         "instance in table2.csv). HV: hypervolume with the bounds as reference; SP: Deb's spread; paper's SP: the "
-        "paper's mean neighbour distance; IGD+: distance from the best known front (lower is better for the last "
+        "paper's mean neighbor distance; IGD+: distance from the best known front (lower is better for the last "
         "three).\n\n" + table2_markdown(rows, settings, header, published)
     )
 
@@ -361,7 +361,7 @@ def write_report(
         raise OptionError(f"{case.name} declares no requirement settings; give --setting (one bound per objective)")
     if figure_setting is None:
         figure_setting = case.figure_setting if case.figure_setting in settings else settings[0]
-    rows = analyse(records, settings, published)
+    rows = analyze(records, settings, published)
     header = [f"{o.name} {'>=' if o.direction is Direction.MAX else '<='}" for o in objectives]
     text = table2_document(campaign, case.name, settings_record, records, rows, settings, header, published is not None)
     out.mkdir(parents=True, exist_ok=True)

@@ -23,7 +23,7 @@ OBSTACLE = 10
 """Cells weighing this much or more are obstacles."""
 
 PENALTY = 3
-"""Added to a cell's weight for each obstacle among its four neighbours."""
+"""Added to a cell's weight for each obstacle among its four neighbors."""
 
 
 @frozen(kw_only=True)
@@ -140,7 +140,7 @@ def generate(size: int, seed: int, *, attempts: int = 10_000) -> Grid:
     Each cell draws z from a standard normal; |z| >= 1 (outside one sigma) makes an obstacle
     of weight 10 * floor(|z|). As in the package's published maps, the start row (y = 0) is
     kept free, and maps are drawn until free cells join start and target. Then every cell
-    gets +3 per obstacle among its four neighbours.
+    gets +3 per obstacle among its four neighbors.
     """
     rng = np.random.default_rng(seed)
     for _ in range(attempts):
@@ -155,7 +155,7 @@ def generate(size: int, seed: int, *, attempts: int = 10_000) -> Grid:
 
 
 def add_penalties(grid: Grid) -> Grid:
-    """+3 per obstacle among each cell's four neighbours (obstacles included)."""
+    """+3 per obstacle among each cell's four neighbors (obstacles included)."""
     weights = [list(col) for col in grid.weights]
     for x, y in grid.cells():
         for nx, ny in ((x - 1, y), (x + 1, y), (x, y - 1), (x, y + 1)):

@@ -1,8 +1,8 @@
 """The movement controller (the UAC): one move per cell, from Dijkstra's algorithm on the weights.
 
 The search runs from the target outwards and computes, for every cell, the move towards the
-neighbour it was reached from. Ties are broken exactly as the replication package breaks
-them (its ``dijkstra.compute_directions``): a heap ordered by (distance, (x, y)), neighbours
+neighbor it was reached from. Ties are broken exactly as the replication package breaks
+them (its ``dijkstra.compute_directions``): a heap ordered by (distance, (x, y)), neighbors
 relaxed in the order west, east, south, north of the popped cell, and only a strictly shorter
 distance replaces a recorded one. Entering a cell costs its weight; obstacles cannot be
 entered. Obstacles, the target and cells that cannot reach the target get no move.

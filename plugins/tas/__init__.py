@@ -1,6 +1,6 @@
 """tas: the Tele Assistance System exemplar (Weyns & Calinescu, SEAMS 2015).
 
-A patient's device asks a medical analysis service to analyse vital parameters (or the
+A patient's device asks a medical analysis service to analyze vital parameters (or the
 panic button raises an alarm); the analysis may ask the drug service to change the drug or
 the dose, or the alarm service to send an alarm. When the primary analysis provider fails,
 the workflow fails over to a backup provider, whose health drifts unseen; the
@@ -60,7 +60,7 @@ class TasOptions:
     )
     p_vital: float = option(
         0.75,
-        "probability that an execution analyses vital parameters, else it is a panic-button alarm (TAS: 0.75)",
+        "probability that an execution analyzes vital parameters, else it is a panic-button alarm (TAS: 0.75)",
         probability,
     )
     p_alarm: float = option(1 / 3, "probability that an analysis asks for an alarm (TAS: 1/3)", probability)

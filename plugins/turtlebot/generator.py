@@ -4,7 +4,7 @@ The structure follows the paper's ``models/turtlebot/model.prism`` so that a pol
 same values on both (scripts/check_turtlebot.py compares them with Storm):
 
 - ``Robot``: the true cell (x, y) and heading ``direction``; a move command draws its
-  outcome from the motion table of the true cell and heading: a neighbouring cell and new
+  outcome from the motion table of the true cell and heading: a neighboring cell and new
   heading, ``crashed`` or ``out`` (left the area), after which the robot stays where it
   was and only idles (``stuck``). A cell without table entries (an obstacle) has no move.
 - ``Controller`` (the UAC): one move per estimated cell (xhat, yhat), none at the target.

@@ -1,7 +1,7 @@
 """policy.png: the chosen localisation periods per estimated cell and heading.
 
 Each cell is split into four triangles, one per estimated heading (the triangle on the
-cell's north side for heading north, and so on), coloured and labelled by the period.
+cell's north side for heading north, and so on), colored and labeled by the period.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from matplotlib.patches import Polygon, Rectangle
 from parley_core.plotting import figure, save
 from parley_plugins.turtlebot.world import STEP, World
 
-# Triangle corners (relative to the cell centre) and label offset, per heading number.
+# Triangle corners (relative to the cell center) and label offset, per heading number.
 _TRIANGLES = {
     0: ([(-0.5, 0.5), (0.5, 0.5), (0, 0)], (0, 0.3)),
     1: ([(0.5, 0.5), (0.5, -0.5), (0, 0)], (0.3, 0)),

@@ -33,13 +33,13 @@ def test_generation_is_reproducible_and_follows_the_package():
     assert grids.has_path(first)
     raw = [[v % 10 if v < 10 else v for v in col] for col in first.weights]
     for x, y in first.cells():
-        neighbours = sum(
+        neighbors = sum(
             first.is_obstacle(nx, ny)
             for nx, ny in ((x - 1, y), (x + 1, y), (x, y - 1), (x, y + 1))
             if 0 <= nx < 10 and 0 <= ny < 10
         )
-        # weight = 10 * floor(|z|) for obstacles, plus 3 per neighbouring obstacle
-        assert first.weights[x][y] - 3 * neighbours in (0, 10, 20, 30, 40, 50), (x, y, raw[x][y])
+        # weight = 10 * floor(|z|) for obstacles, plus 3 per neighboring obstacle
+        assert first.weights[x][y] - 3 * neighbors in (0, 10, 20, 30, 40, 50), (x, y, raw[x][y])
 
 
 def test_no_path_is_reported(tmp_path):

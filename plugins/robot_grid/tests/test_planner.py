@@ -1,7 +1,7 @@
 """The movement controller: Dijkstra from the target with the package's tie breaking.
 
 The expected moves were derived by hand, following the package's algorithm: a heap of
-(distance, (x, y)), neighbours relaxed west, east, south, north, strict improvement only.
+(distance, (x, y)), neighbors relaxed west, east, south, north, strict improvement only.
 """
 
 from __future__ import annotations

@@ -47,12 +47,12 @@ def reference(o, policy) -> tuple[float, float, float]:
             f_over, c_over, t_over = levels[b], BACKUP["cost"], BACKUP["time"]
         else:
             f_over, c_over, t_over = ALTERNATIVE["fail"], ALTERNATIVE["cost"], ALTERNATIVE["time"]
-        analysed = (1 - f_primary) + f_primary * (1 - f_over)  # some provider delivered an analysis
+        analyzed = (1 - f_primary) + f_primary * (1 - f_over)  # some provider delivered an analysis
         p_change = o.p_drug + o.p_dose
         vital = (
-            f_primary * f_over + analysed * (o.p_alarm * ALARM["fail"] + p_change * DRUG["fail"]),
-            PRIMARY["cost"] + f_primary * c_over + analysed * (o.p_alarm * ALARM["cost"] + p_change * DRUG["cost"]),
-            PRIMARY["time"] + f_primary * t_over + analysed * (o.p_alarm * ALARM["time"] + p_change * DRUG["time"]),
+            f_primary * f_over + analyzed * (o.p_alarm * ALARM["fail"] + p_change * DRUG["fail"]),
+            PRIMARY["cost"] + f_primary * c_over + analyzed * (o.p_alarm * ALARM["cost"] + p_change * DRUG["cost"]),
+            PRIMARY["time"] + f_primary * t_over + analyzed * (o.p_alarm * ALARM["time"] + p_change * DRUG["time"]),
         )
         button = (ALARM["fail"], ALARM["cost"], ALARM["time"])
         return [o.p_vital * v + (1 - o.p_vital) * w for v, w in zip(vital, button)]
@@ -197,8 +197,8 @@ def test_without_drift_the_estimate_is_always_right():
         peak = peak * (1 - options.peak_end) + (1 - peak) * options.peak_start
         f_primary = peak * options.primary_failure_peak + (1 - peak) * options.primary_failure
         f_over = 0.05  # the healthy backup, trusted
-        analysed = 1 - f_primary * f_over
-        vital = f_primary * f_over + analysed * (options.p_alarm * 0.04 + (options.p_drug + options.p_dose) * 0.01)
+        analyzed = 1 - f_primary * f_over
+        vital = f_primary * f_over + analyzed * (options.p_alarm * 0.04 + (options.p_drug + options.p_dose) * 0.01)
         expected += options.p_vital * vital + (1 - options.p_vital) * 0.04
     assert failures[0] == pytest.approx(expected / options.rounds, rel=1e-12)
 
