@@ -15,9 +15,7 @@ from parley_core.augment import augment
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.model import Objective
-from parley_core.plugins import load_registry
-
-ROBOT = load_registry().get("robot_grid")
+from parley_plugins.robot_grid import CASE_STUDY as ROBOT
 
 # The toy (tests/conftest.py) with an absorbing "broken" state reached from a degraded
 # server, so that rewards until it are finite and total rewards can be infinite, and an
