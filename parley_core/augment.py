@@ -67,9 +67,12 @@ def _augment(system: SystemModel, kept: set[tuple[int, ...]] | None, form: str) 
         mapping = {}
         for service in system.services:
             name = decision_name(service.constant, valuation)
-            if manager.has_variable(name):
+            if not valuation:  # no observation: the service constant is its own decision
+                variable = service_vars[service.constant]
+            elif manager.has_variable(name):
                 raise ModelError(f"{origin} already has an identifier {name!r}; rename it, parley needs that name")
-            variable = manager.declare_integer_variable(name)
+            else:
+                variable = manager.declare_integer_variable(name)
             mapping[service_vars[service.constant]] = variable.get_expression()
             decisions.append(Decision(name=name, service=service, valuation=valuation))
         copies.append(rewrite.Copy(mapping=mapping, condition=rewrite.valuation_condition(program, system, valuation)))

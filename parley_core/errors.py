@@ -42,3 +42,12 @@ class SearchError(ParleyError):
 
 class ObservationError(ParleyError):
     """An observation the controller was not synthesized for."""
+
+
+class ParleyDefect(Exception):
+    """Something parley got wrong, not the user: the CLI prints it in one line and exits with
+    status 3, and asks for a report. Never a subclass of :class:`ParleyError`."""
+
+
+class EvaluatorDisagreement(ParleyDefect):
+    """The search's evaluator and Storm's re-check give different values for a policy."""

@@ -31,14 +31,28 @@ def nondominated(values: np.ndarray, directions: Sequence[Direction]) -> np.ndar
     return np.asarray(moocore.is_nondominated(values, maximise=_maximize(directions), keep_weakly=False))
 
 
+def front_candidates(values: np.ndarray) -> np.ndarray:
+    """Which rows may be on a front: an infinite value (an expected cost of a policy that
+    may never reach its goal, say) keeps a row off unless every row is infinite in that
+    objective. NaN never is a candidate."""
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        return np.zeros(len(values), dtype=bool)
+    finite = np.isfinite(values)
+    allowed = finite | (~finite & ~finite.any(axis=0))
+    return allowed.all(axis=1) & ~np.isnan(values).any(axis=1)
+
+
 def reference_point(objectives: Sequence[Objective], *sets: np.ndarray) -> np.ndarray:
-    """The hypervolume reference: each objective's ``reference`` if set, else its worst value in
-    ``sets`` moved away by a tenth of the range (so extreme points still count)."""
+    """The hypervolume reference: each objective's ``reference`` if set, else its worst
+    finite value in ``sets`` moved away by a tenth of the range (so extreme points still
+    count); an objective without any finite value gets 1."""
     directions = [o.direction for o in objectives]
     stacked = np.vstack([np.asarray(s, dtype=float).reshape(-1, len(objectives)) for s in sets])
     as_min = _as_min(stacked, directions)
-    worst = as_min.max(axis=0)
-    best = as_min.min(axis=0)
+    finite = np.isfinite(as_min)
+    worst = np.where(finite.any(axis=0), np.where(finite, as_min, -np.inf).max(axis=0), 1.0)
+    best = np.where(finite.any(axis=0), np.where(finite, as_min, np.inf).min(axis=0), 1.0)
     span = worst - best
     offset = np.where(span > 0, 0.1 * span, np.maximum(0.1 * np.abs(worst), 1.0))
     ref_min = worst + offset
@@ -51,10 +65,11 @@ def reference_point(objectives: Sequence[Objective], *sets: np.ndarray) -> np.nd
 
 def hypervolume(values: np.ndarray, directions: Sequence[Direction], reference: Sequence[float]) -> float:
     """Volume dominated by the points and bounded by ``reference``; points not strictly better
-    than the reference in every objective contribute nothing."""
+    than the reference in every objective contribute nothing, and neither do points with an
+    infinite value."""
     as_min = _as_min(values, directions)
     ref_min = _as_min(np.asarray(reference, dtype=float), directions)[0]
-    inside = as_min[(as_min < ref_min).all(axis=1)]
+    inside = as_min[(as_min < ref_min).all(axis=1) & np.isfinite(as_min).all(axis=1)]
     if len(inside) == 0:
         return 0.0
     return float(moocore.hypervolume(inside, ref=ref_min))

@@ -160,7 +160,9 @@ class SystemModel:
     name: str = field(validator=_IDENTIFIER)
     prism: str = field(validator=validators.min_len(1))
     services: tuple[Service, ...] = field(converter=_services, validator=validators.min_len(1))
-    observation: tuple[str, ...] = field(converter=tuple[str, ...], validator=validators.min_len(1))
+    observation: tuple[str, ...] = field(converter=tuple[str, ...])
+    """May be empty: a URC that reads nothing chooses one value per service (a family of
+    constants, as PAYNT's holes are)."""
     objectives: tuple[Objective, ...] = field(converter=_objectives)
     """What to optimize; may be empty only for augmentation without a search."""
     baselines: tuple[Baseline, ...] = field(converter=_baselines, factory=tuple)
@@ -191,7 +193,8 @@ class SystemModel:
 
 
 def decision_name(constant: str, valuation: tuple[int, ...]) -> str:
-    """The decision constant for ``constant`` at an observation valuation: ``c_3_4``, ``c_m2``."""
+    """The decision constant for ``constant`` at an observation valuation: ``c_3_4``, ``c_m2``;
+    with no observation variables, the constant itself."""
     parts = [f"m{-v}" if v < 0 else str(v) for v in valuation]
     return "_".join([constant, *parts])
 
@@ -301,7 +304,8 @@ class Policy:
 @frozen(kw_only=True)
 class Valued:
     """Policies with their objective values (in the objectives' own units and directions):
-    any evaluated set, such as the baselines or the policies of a file."""
+    any evaluated set, such as the baselines or the policies of a file. A value may be
+    infinite (the expected cost of a policy that may never reach its goal), never NaN."""
 
     objectives: tuple[Objective, ...] = field(converter=tuple[Objective, ...])
     policies: tuple[Policy, ...] = field(converter=tuple[Policy, ...])
@@ -313,7 +317,7 @@ class Valued:
         if len(self.policies) != len(self.values):
             raise ValueError("a front needs one row of values per policy")
         for row in self.values:
-            if len(row) != len(self.objectives) or not all(math.isfinite(v) for v in row):
+            if len(row) != len(self.objectives) or any(math.isnan(v) for v in row):
                 raise ValueError(f"bad objective values {row}")
 
     def __len__(self) -> int:

@@ -157,6 +157,9 @@ def run(
             f"no evaluated policy meets {' and '.join(map(str, settings.constraints))} (best values seen: {best}); "
             "relax the constraints or search longer"
         )
+    feasible &= metrics.front_candidates(result.values)
+    if not feasible.any():
+        raise SearchError("every evaluated policy has a NaN objective value; check the objectives' formulas")
     mask = metrics.nondominated(result.values[feasible], directions)
     candidates = result.policies[feasible][mask]
     values = result.values[feasible][mask]
@@ -166,9 +169,29 @@ def run(
         elif not verify:
             verification = not_checked()
         else:
-            verification, values = check_with_storm(family, candidates, values, workers, reporter)
+            # the baselines too: every value a run reports is Storm's
+            base_rows = np.array([p.values for p in baseline.policies], dtype=np.int64).reshape(
+                -1, len(family.decisions)
+            )
+            verification, checked = check_with_storm(
+                family,
+                np.vstack([base_rows, candidates]),
+                np.vstack([np.array(baseline.values).reshape(-1, len(names)), values]),
+                workers,
+                reporter,
+                names=[f"baseline {p.name}" for p in baseline.policies] + [None] * len(candidates),
+                baselines=len(base_rows),
+            )
+            baseline = Valued(
+                objectives=family.objectives, policies=baseline.policies, values=checked[: len(base_rows)]
+            )
+            values = checked[len(base_rows) :]
     # Storm's values decide the front: drop anything they show to be dominated or infeasible.
-    keep = metrics.nondominated(values, directions) & meets(values, names, settings.constraints)
+    keep = (
+        metrics.nondominated(values, directions)
+        & meets(values, names, settings.constraints)
+        & metrics.front_candidates(values)
+    )
     candidates, values = candidates[keep], values[keep]
     order = np.lexsort(tuple(values[:, i] for i in reversed(range(values.shape[1]))))
     width = len(str(len(order)))

@@ -124,11 +124,7 @@ def summary(result: RunResult) -> dict[str, Any]:
         "hypervolume_reference": list(result.reference),
         "hypervolume_gain": hv_front - hv_base,
         "hypervolume_gain_percent": (100.0 * (hv_front - hv_base) / hv_base) if hv_base > 0 else None,
-        "verification": {
-            "by": result.verification.by.value,
-            "policies": result.verification.policies,
-            "max_difference": result.verification.max_difference,
-        },
+        "verification": result.verification.to_json(),
         "selected": {
             "policy": result.front.policies[result.selected].name,
             "rule": "knee (closest to the ideal point, normalized)",

@@ -120,10 +120,13 @@ class PolicyProblem(Problem):
         left = None if self.budget is None else max(0, self.budget - len(self.archive))
         values = self.archive.evaluate(policies, budget=left)
         unevaluated = np.isnan(values).all(axis=1) if left is not None else np.zeros(len(values), dtype=bool)
-        out["F"] = np.where(unevaluated[:, None], UNEVALUATED, values * self.signs)
+        # pymoo's crowding distance needs finite numbers: an infinite value is the worst (or
+        # best) there is, so it becomes the largest (or smallest) number pymoo sees
+        objectives = np.clip(values * self.signs, -UNEVALUATED, UNEVALUATED)
+        out["F"] = np.where(unevaluated[:, None], UNEVALUATED, objectives)
         if self.constraints:
             violations = np.column_stack([c.violation(values[:, i]) for i, c in self.constraints])
-            out["G"] = np.where(unevaluated[:, None], UNEVALUATED, violations)
+            out["G"] = np.where(unevaluated[:, None], UNEVALUATED, np.clip(violations, -UNEVALUATED, UNEVALUATED))
 
 
 @frozen(kw_only=True)

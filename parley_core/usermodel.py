@@ -51,9 +51,9 @@ def parse_decision(text: str) -> Service:
 
 
 def parse_observation(items: Sequence[str]) -> tuple[str, ...]:
+    """The observation variables of ``--observe`` (none: a URC that reads nothing, one value
+    per decision constant)."""
     names = tuple(n.strip() for item in items for n in item.split(",") if n.strip())
-    if not names:
-        raise OptionError("give the variables the URC may read with --observe VAR,... (e.g. --observe xhat,yhat)")
     duplicates = sorted({n for n in names if names.count(n) > 1})
     if duplicates:
         raise OptionError(f"--observe names {', '.join(duplicates)} twice; give each variable once")

@@ -15,8 +15,12 @@ import time
 import numpy as np
 from attrs import frozen
 
+from parley_core.errors import EvaluatorDisagreement
 from parley_core.model import Family
 from parley_core.progress import NullReporter, Reporter
+
+TOLERANCE = 1e-9
+"""How far the search's evaluator may be from Storm: 1e-9 times the value's size (at least 1)."""
 
 
 class Verified(enum.Enum):
@@ -35,14 +39,22 @@ class Verified(enum.Enum):
 class Verification:
     by: Verified
     policies: int
+    """Front policies re-checked."""
     max_difference: float
     seconds: float
+    max_relative_difference: float = float("nan")
+    """The largest difference relative to the value's size (at least 1): what :data:`TOLERANCE` bounds."""
+    baselines: int = 0
+    """Baselines re-checked besides the front's policies."""
 
     def to_json(self) -> dict[str, object]:
         return {
             "by": self.by.value,
             "policies": self.policies,
+            "baselines": self.baselines,
             "max_difference": self.max_difference,
+            "max_relative_difference": self.max_relative_difference,
+            "tolerance": TOLERANCE,
             "seconds": self.seconds,
         }
 
@@ -53,6 +65,8 @@ class Verification:
             policies=int(data.get("policies", 0)),
             max_difference=float(data.get("max_difference", float("nan"))),
             seconds=float(data.get("seconds", 0.0)),
+            max_relative_difference=float(data.get("max_relative_difference", float("nan"))),
+            baselines=int(data.get("baselines", 0)),
         )
 
 
@@ -65,14 +79,41 @@ def not_checked() -> Verification:
     return Verification(by=Verified.NOT_CHECKED, policies=0, max_difference=float("nan"), seconds=0.0)
 
 
+def differences(searched: np.ndarray, checked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Absolute differences and differences relative to the checked value's size (at least
+    1); where both are the same infinity, both are 0, where only one is infinite, inf."""
+    searched = np.asarray(searched, dtype=float)
+    checked = np.asarray(checked, dtype=float)
+    same = (searched == checked) | (np.isnan(searched) & np.isnan(checked))
+    with np.errstate(invalid="ignore"):
+        absolute = np.where(same, 0.0, np.abs(searched - checked))
+    absolute = np.where(np.isnan(absolute), np.inf, absolute)
+    scale = np.maximum(1.0, np.abs(np.where(np.isfinite(checked), checked, 0.0)))
+    return absolute, absolute / scale
+
+
+def _decisions(family: Family, row: np.ndarray, shown: int = 6) -> str:
+    """A policy by its first decisions: ``c_0_0=3, c_0_1=10, ... (100 decisions)``."""
+    parts = [f"{name}={int(value)}" for name, value in zip(family.names[:shown], row)]
+    more = f", ... ({len(family.names)} decisions)" if len(family.names) > shown else ""
+    return f"with {', '.join(parts)}{more}"
+
+
 def check_with_storm(
     family: Family,
     policies: np.ndarray,
     values: np.ndarray,
     workers: int | None = None,
     reporter: Reporter | None = None,
+    names: list[str | None] | None = None,
+    baselines: int = 0,
 ) -> tuple[Verification, np.ndarray]:
-    """Storm's values of ``policies``, and how far they are from ``values`` (the search's)."""
+    """Storm's values of ``policies``, and how far they are from ``values`` (the search's).
+
+    A difference beyond :data:`TOLERANCE` is a parley defect, not a figure:
+    :class:`~parley_core.errors.EvaluatorDisagreement` names the policy, the objective and
+    both values. ``names`` name the policies in that message (None: by their decisions);
+    the first ``baselines`` rows are the baselines, counted apart in the result."""
     from parley_core.evaluate.storm import StormEvaluator
 
     reporter = reporter or NullReporter()
@@ -80,11 +121,24 @@ def check_with_storm(
     with StormEvaluator(family, workers=workers) as storm:
         reporter.stage("verify with Storm", len(policies))
         checked = storm.evaluate(policies, progress=reporter.advance)
-    difference = float(np.abs(checked - values).max()) if len(values) else 0.0
+    absolute, relative = differences(values, checked)
+    if len(values) and (relative > TOLERANCE).any():
+        row, column = np.unravel_index(int(np.argmax(relative)), relative.shape)
+        name = names[row] if names else None
+        policy = name if name is not None else _decisions(family, policies[row])
+        objective = family.objectives[column].name
+        raise EvaluatorDisagreement(
+            f"the search's evaluator and Storm disagree on policy {policy}, objective {objective}: "
+            f"{float(values[row, column])!r} against Storm's {float(checked[row, column])!r} "
+            f"(relative difference {float(relative[row, column]):.1e}, tolerance {TOLERANCE:g}); "
+            "this is a defect of parley's fast evaluator: rerun with --evaluator storm and report it"
+        )
     verification = Verification(
         by=Verified.STORM_RECHECK,
-        policies=len(policies),
-        max_difference=difference,
+        policies=len(policies) - baselines,
+        baselines=baselines,
+        max_difference=float(absolute.max()) if len(values) else 0.0,
+        max_relative_difference=float(relative.max()) if len(values) else 0.0,
         seconds=time.perf_counter() - start,
     )
     return verification, checked

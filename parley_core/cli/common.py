@@ -9,21 +9,29 @@ from typing import Any
 import typer
 
 from parley_core.casestudy import CaseStudy
-from parley_core.errors import OptionError, ParleyError
+from parley_core.errors import OptionError, ParleyDefect, ParleyError
 from parley_core.model import Constraint
+
+USER_ERROR = 2
+"""The exit status of an error the user can fix (a ParleyError)."""
+DEFECT = 3
+"""The exit status of a defect of parley (a ParleyDefect, such as evaluators that disagree)."""
 
 
 def user_errors(command):
-    """Turn ParleyError into one line on stderr and exit status 2."""
+    """Turn ParleyError into one line on stderr and exit status 2, ParleyDefect into one
+    line and exit status 3."""
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
         try:
             return command(*args, **kwargs)
         except ParleyError as exc:
-            message = " ".join(str(exc).split())
-            print(f"error: {message}", file=sys.stderr)
-            raise typer.Exit(2) from None
+            print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
+            raise typer.Exit(USER_ERROR) from None
+        except ParleyDefect as exc:
+            print(f"error: parley defect: {' '.join(str(exc).split())}", file=sys.stderr)
+            raise typer.Exit(DEFECT) from None
 
     return wrapper
 

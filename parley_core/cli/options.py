@@ -42,7 +42,14 @@ DecisionOption = Annotated[
         help="A constant that sets when a service runs, and its values (repeatable).",
     ),
 ]
-ObserveOption = Annotated[list[str], typer.Option("--observe", metavar="VAR,...", help="Variables the URC may read.")]
+ObserveOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--observe",
+        metavar="VAR,...",
+        help="Variables the URC may read (none: one value per decision constant, as PAYNT's holes).",
+    ),
+]
 JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON document to stdout and nothing else there.")]
 ForceOption = Annotated[bool, typer.Option(help="Replace the files of an existing --out directory.")]
 CaseArgument = Annotated[str, typer.Argument(help="Case study name (see `parley list`).")]

@@ -76,7 +76,7 @@ def synthesize_command(
         ),
     ],
     decision: DecisionOption,
-    observe: ObserveOption,
+    observe: ObserveOption = None,
     maximize: Annotated[
         list[str] | None, typer.Option("--maximize", metavar="NAME", help="Maximize this objective.")
     ] = None,
@@ -100,7 +100,7 @@ def synthesize_command(
 
     def prepare_with(reporter):
         reporter.stage("read model")
-        system = system_from_file(model, decision, observe, props, maximize or [], minimize or [])
+        system = system_from_file(model, decision, observe or [], props, maximize or [], minimize or [])
         return prepare(case_study_for(system, model), FileOptions(model=str(model)), reporter)
 
     settings = search_settings(
@@ -119,7 +119,7 @@ def _synthesize(prepare_with, settings, out: Path, force: bool, evaluator: str, 
     """Prepare, search, verify, write and print a run (shared by `run` and `synthesize`)."""
     from parley_core.pipeline import run
     from parley_core.report import PLOT_ERROR, check_output, summary, write_run
-    from parley_core.verify import Verified
+    from parley_core.verify import TOLERANCE, Verified
 
     kind = EvaluatorKind.of(evaluator)
     console = Console()
@@ -156,8 +156,9 @@ def _synthesize(prepare_with, settings, out: Path, force: bool, evaluator: str, 
     verification = result.verification
     if verification.by is Verified.STORM_RECHECK:
         console.print(
-            f"every front policy re-checked by Storm: largest difference from the {kind.value} evaluator "
-            f"{verification.max_difference:.1e}"
+            f"every front policy and baseline re-checked by Storm: largest difference from the {kind.value} "
+            f"evaluator {verification.max_difference:.1e} (relative {verification.max_relative_difference:.1e}, "
+            f"within the tolerance {TOLERANCE:g})"
         )
     console.print(f"wrote {out}/")
     if search.interrupted:
@@ -169,7 +170,7 @@ def _synthesize(prepare_with, settings, out: Path, force: bool, evaluator: str, 
 def augment_command(
     model: Annotated[Path, typer.Argument(help="A PRISM DTMC.")],
     decision: DecisionOption,
-    observe: ObserveOption,
+    observe: ObserveOption = None,
     out: Annotated[Path | None, typer.Option(help="Write the parametric model here (default: stdout).")] = None,
     format_: Annotated[
         str, typer.Option("--format", help="prism (undefined const int), evochecker (evolve int) or paynt (hole).")
@@ -185,7 +186,7 @@ def augment_command(
         raise OptionError(f"unknown --format {format_!r}; valid: {', '.join(FORMATS)}")
     if out is not None and out.exists() and not force:
         raise OptionError(f"output {out} exists; choose another --out or add --force")
-    system = system_from_file(model, decision, observe)
+    system = system_from_file(model, decision, observe or [])
     family = make_family(system, prune=True)
     text = export(family, format_)
     total = len(family.valuations) + len(family.left_out)

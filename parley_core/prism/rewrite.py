@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 from attrs import field, frozen
 from stormpy.developer.storage import Expression, PrismProgram
@@ -49,7 +50,7 @@ class Rewritten:
     """The service constants some command uses."""
 
 
-def service_variables(program: PrismProgram, services: Sequence[Service], origin: str) -> dict[str, object]:
+def service_variables(program: PrismProgram, services: Sequence[Service], origin: str) -> dict[str, Any]:
     """``{constant name: expression variable}`` of the services, in the services' order; a
     constant the program does not declare is an error."""
     constants = {c.name: c for c in program.constants}
@@ -70,10 +71,13 @@ def copy_service_commands(
     constants: Mapping[str, object],
     copies: Callable[[object, list[str]], Sequence[Copy]],
     origin: str,
+    drop_false: bool = False,
 ) -> Rewritten:
     """Replace every command that uses one of ``constants`` (name -> expression variable,
     in the order that ``copies`` receives the used ones) by ``copies(command, used)``; widen
-    the bounds that use a service constant (:func:`widen_bounds`)."""
+    the bounds that use a service constant (:func:`widen_bounds`). With ``drop_false``, a
+    copy whose guard simplifies to false is left out (a model that tests a constant in its
+    guards, ``c=3 -> ...``, gets one copy per value, not one per value and command)."""
     manager = program.expression_manager
     modules: dict[str, str] = {}
     tags_by_module: dict[str, tuple[Tag, ...]] = {}
@@ -92,6 +96,10 @@ def copy_service_commands(
                 guard = command.guard_expression.substitute(copy.mapping)
                 if copy.condition is not None:
                     guard = Expression.And(copy.condition, guard)
+                if drop_false:
+                    simple = guard.simplify()
+                    if simple.is_literal() and not simple.evaluate_as_bool():
+                        continue
                 updates = [str(update.substitute(copy.mapping)) for update in command.updates]
                 lines.append(command_line(command.action_name, str(guard), updates))
                 tags.append(copy.tag)
@@ -103,8 +111,9 @@ def copy_service_commands(
     return Rewritten(modules=modules, tags=tags_by_module, used=frozenset(used_anywhere))
 
 
-def valuation_condition(program: PrismProgram, system: SystemModel, valuation: tuple[int, ...]) -> Expression:
-    """``xhat=3 & yhat=4`` (``b <=> true`` for a boolean variable) as a Storm expression."""
+def valuation_condition(program: PrismProgram, system: SystemModel, valuation: tuple[int, ...]) -> Expression | None:
+    """``xhat=3 & yhat=4`` (``b <=> true`` for a boolean variable) as a Storm expression;
+    None for the empty valuation (no observation variables)."""
     manager = program.expression_manager
     parts = []
     for name, value in zip(system.observation, valuation):
@@ -113,6 +122,8 @@ def valuation_condition(program: PrismProgram, system: SystemModel, valuation: t
             parts.append(Expression.Iff(expression, manager.boolean(bool(value))))
         else:
             parts.append(Expression.Eq(expression, manager.integer(value)))
+    if not parts:
+        return None
     result = parts[0]
     for part in parts[1:]:
         result = Expression.And(result, part)
@@ -179,7 +190,7 @@ def quotient_program(system: SystemModel, program: PrismProgram | None = None) -
             for values in itertools.product(*(s.values for s in services))
         ]
 
-    rewritten = copy_service_commands(program, system, constants, per_value, origin)
+    rewritten = copy_service_commands(program, system, constants, per_value, origin, drop_false=True)
     text = prism.splice(
         program, modules=rewritten.modules, constants={name: "" for name in constants}, model_type="mdp"
     )
@@ -209,4 +220,4 @@ def observation_rewards(program: PrismProgram, system: SystemModel) -> Rewards:
             value = f"({name} - {domain.start})"
         terms.append(f"{value} * {stride}")
         stride *= len(domain)
-    return Rewards(name=OBSERVATION_REWARD, items=[RewardItem(guard="true", value=" + ".join(terms))])
+    return Rewards(name=OBSERVATION_REWARD, items=[RewardItem(guard="true", value=" + ".join(terms) or "0")])

@@ -64,6 +64,8 @@ def reward_arrays(mdp: QuotientMDP, names: list[str]) -> tuple[np.ndarray, np.nd
     state_rewards = np.zeros((max(1, len(names)), n))
     choice_rewards = np.zeros((max(1, len(names)), len(mdp.state_of_choice)))
     for r, name in enumerate(names):
+        if name not in mdp.reward_names:  # a defect: an objective's structure would read as zero
+            raise RuntimeError(f"the quotient has no reward structure {name!r}; it has {sorted(mdp.reward_names)}")
         base = f"annotations/rewards/{name}"
         if f"{base}/states/values.bin" in arrays:
             state_rewards[r] = arrays[f"{base}/states/values.bin"]

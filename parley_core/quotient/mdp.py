@@ -10,6 +10,7 @@ reward :data:`~parley_core.prism.rewrite.OBSERVATION_REWARD`).
 
 from __future__ import annotations
 
+import json
 import os
 import tarfile
 import tempfile
@@ -40,6 +41,8 @@ class QuotientMDP:
     properties: list = field(eq=False, repr=False)
     """The objectives' properties parsed against the quotient program (empty when built without)."""
     arrays: dict = field(eq=False, repr=False)
+    reward_names: frozenset[str]
+    """The reward structures Storm built (by their names in the model)."""
     state_choices: np.ndarray = field(eq=False, repr=False)
     state_of_choice: np.ndarray = field(eq=False, repr=False)
     service_of_choice: np.ndarray = field(eq=False, repr=False)
@@ -74,7 +77,7 @@ def build_mdp(system: SystemModel, formulas: Sequence[str] = (), objective_names
         raise ModelError(f"Storm cannot build the quotient model: {prism.storm_message(exc)}") from None
     if len(model.initial_states) != 1:
         raise ModelError(f"the model has {len(model.initial_states)} initial states; parley needs exactly one")
-    arrays = read_umb(model)
+    arrays, reward_names = read_umb(model)
     n = model.nr_states
     state_choices = arrays["state-to-choices.bin"].astype(np.int64)
     state_of_choice = np.repeat(np.arange(n), np.diff(state_choices))
@@ -102,6 +105,7 @@ def build_mdp(system: SystemModel, formulas: Sequence[str] = (), objective_names
         program=program,
         properties=properties,
         arrays=arrays,
+        reward_names=reward_names,
         state_choices=state_choices,
         state_of_choice=state_of_choice,
         service_of_choice=id_service[identifiers],
@@ -117,8 +121,11 @@ def consulted_valuations(mdp: QuotientMDP) -> set[tuple[int, ...]]:
     return {mdp.valuations[i] for i in np.unique(mdp.obs_of_choice[tagged])}
 
 
-def read_umb(model) -> dict[str, np.ndarray]:
-    """The arrays of Storm's binary UMB export of ``model`` that the quotient uses, by file name."""
+def read_umb(model) -> tuple[dict[str, np.ndarray], frozenset[str]]:
+    """The arrays of Storm's binary UMB export of ``model`` that the quotient uses, by file
+    name, and the names of the reward structures it holds. UMB escapes names in its file
+    names (``lostH`` is stored as ``lost0x48``); its index gives each one's real name
+    (``alias``), and the reward arrays are returned under the real names."""
     options = storm_io.UmbExportOptions()
     options.compression = storm_io.CompressionMode.NO_COMPRESSION
     options.allow_choice_origins_as_actions = True
@@ -130,6 +137,11 @@ def read_umb(model) -> dict[str, np.ndarray]:
         storm_io.umb_to_archive(umb, path, options)
         arrays = {}
         with tarfile.open(path) as archive:
+            index = archive.extractfile("index.json")
+            if index is None:
+                raise RuntimeError("Storm's UMB export has no index.json")
+            rewards = json.loads(index.read()).get("annotations", {}).get("rewards", {})
+            alias = {key: str(entry.get("alias", key)) for key, entry in rewards.items()}
             for member in archive.getmembers():
                 if not member.isfile() or not member.name.endswith(".bin"):
                     continue
@@ -142,10 +154,13 @@ def read_umb(model) -> dict[str, np.ndarray]:
                     arrays[name] = np.frombuffer(data, dtype=np.uint64)
                 elif name == "actions/choices/values.bin":
                     arrays[name] = np.frombuffer(data, dtype=np.uint32)
-                elif name == "branch-to-probability.bin" or (
-                    name.startswith("annotations/rewards/") and name.endswith("/values.bin")
-                ):
+                elif name == "branch-to-probability.bin":
                     arrays[name] = np.frombuffer(data, dtype=np.float64)
-        return arrays
+                elif name.startswith("annotations/rewards/") and name.endswith("/values.bin"):
+                    _, _, key, rest = name.split("/", 3)
+                    if key not in alias:
+                        raise RuntimeError(f"Storm's UMB export holds reward {key!r}, which its index does not name")
+                    arrays[f"annotations/rewards/{alias[key]}/{rest}"] = np.frombuffer(data, dtype=np.float64)
+        return arrays, frozenset(alias.values())
     finally:
         os.unlink(path)
