@@ -10,12 +10,12 @@ stormpy nor matplotlib.
 """
 
 from parley_core.casestudy import CaseStudy, PolicyTable
+from parley_core.constraints import Constraint
 from parley_core.errors import ModelError, ObservationError, OptionError, ParleyError, PolicyError
 from parley_core.files import read_text
 from parley_core.hookspecs import hookimpl
 from parley_core.model import (
     Baseline,
-    Constraint,
     Decision,
     DecisionKind,
     Direction,

@@ -41,7 +41,10 @@ def export(family: Family, form: str) -> str:
         raise ModelError(f"unknown format {form!r}; valid: {', '.join(FORMATS)}")
     if form == "prism":
         return family.prism
-    return _augment(family.origin(), set(family.valuations), form).prism
+    try:
+        return _augment(family.origin(), set(family.valuations), form).prism
+    except ValueError as exc:
+        raise ModelError(f"{exc}; export it with --format paynt or prism") from None
 
 
 def _augment(system: SystemModel, kept: set[tuple[int, ...]] | None, form: str) -> Family:
@@ -89,10 +92,10 @@ def _augment(system: SystemModel, kept: set[tuple[int, ...]] | None, form: str) 
     for service in system.services:
         names = [d.name for d in decisions if d.service == service]
         lines = [
-            f"// {service.name} ({service.kind.value}): {service.constant} in {service.low}..{service.high} "
+            f"// {service.name} ({service.kind.value}): {service.constant} in {service.domain_text()} "
             "per observation valuation"
         ]
-        lines += [declaration(name, service.low, service.high, form) for name in names]
+        lines += [declaration(name, service.values, form) for name in names]
         declarations[service.constant] = "\n".join(lines)
 
     header = (

@@ -14,7 +14,7 @@ import attrs
 import numpy as np
 from attrs import field, frozen, validators
 
-from parley_core.errors import ModelError, OptionError, PolicyError
+from parley_core.errors import ModelError, PolicyError
 
 _IDENTIFIER = validators.matches_re(r"[A-Za-z_][A-Za-z0-9_]*")
 _T = TypeVar("_T")
@@ -85,7 +85,8 @@ class Service:
 
     In the input DTMC the constant (``constant``) is consulted by the commands that invoke
     or skip the service; the URC chooses its value, per observation valuation, in
-    ``low..high``.
+    ``low..high``, or in ``choices`` when they are given (a set such as ``{2, 4}``, as
+    PAYNT's holes have; ``low`` and ``high`` are then its smallest and largest value).
     """
 
     name: str = field(validator=_IDENTIFIER)
@@ -94,6 +95,7 @@ class Service:
     low: int = field(validator=validators.instance_of(int))
     high: int = field(validator=validators.instance_of(int))
     description: str = ""
+    choices: tuple[int, ...] = field(default=(), converter=lambda values: tuple(sorted({int(v) for v in values})))
 
     @high.validator
     def _check_range(self, _attribute: attrs.Attribute, high: int) -> None:
@@ -103,19 +105,62 @@ class Service:
                 "give LOW..HIGH with LOW <= HIGH"
             )
 
+    @choices.validator
+    def _check_choices(self, _attribute: attrs.Attribute, choices: tuple[int, ...]) -> None:
+        if choices and (choices[0] != self.low or choices[-1] != self.high):
+            raise ModelError(
+                f"service {self.name!r}: the values {choices} of {self.constant} do not run from low {self.low} "
+                f"to high {self.high}; give low and high as the smallest and largest value"
+            )
+
+    @classmethod
+    def of_values(cls, *, name: str, constant: str, kind: DecisionKind, values, description: str = "") -> Service:
+        """A service whose constant takes the given values (a range if they are contiguous)."""
+        chosen = sorted({int(v) for v in values})
+        if not chosen:
+            raise ModelError(f"service {name!r}: no values for {constant}; give at least one")
+        contiguous = chosen == list(range(chosen[0], chosen[-1] + 1))
+        return cls(
+            name=name,
+            constant=constant,
+            kind=kind,
+            low=chosen[0],
+            high=chosen[-1],
+            choices=() if contiguous else chosen,
+            description=description,
+        )
+
     @property
-    def values(self) -> range:
-        return range(self.low, self.high + 1)
+    def values(self) -> Sequence[int]:
+        """Every value the constant may take, in increasing order."""
+        return self.choices if self.choices else range(self.low, self.high + 1)
+
+    def domain_text(self) -> str:
+        """``1..10`` or ``{2,4}``."""
+        return "{" + ",".join(map(str, self.choices)) + "}" if self.choices else f"{self.low}..{self.high}"
 
     def to_json(self) -> dict[str, Any]:
         """The service as run files and controller files record it."""
-        return {"name": self.name, "constant": self.constant, "kind": self.kind.value, "range": [self.low, self.high]}
+        data: dict[str, Any] = {
+            "name": self.name,
+            "constant": self.constant,
+            "kind": self.kind.value,
+            "range": [self.low, self.high],
+        }
+        if self.choices:
+            data["values"] = list(self.choices)
+        return data
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Service:
         low, high = data["range"]
         return cls(
-            name=data["name"], constant=data["constant"], kind=DecisionKind(data["kind"]), low=int(low), high=int(high)
+            name=data["name"],
+            constant=data["constant"],
+            kind=DecisionKind(data["kind"]),
+            low=int(low),
+            high=int(high),
+            choices=data.get("values", ()),
         )
 
 
@@ -168,6 +213,8 @@ class SystemModel:
     baselines: tuple[Baseline, ...] = field(converter=_baselines, factory=tuple)
     description: str = ""
     context: Any = field(default=None, eq=False, repr=False)
+    notes: tuple[str, ...] = field(default=(), converter=tuple[str, ...])
+    """What the user should know about how parley reads the model (a run reports them)."""
 
     def __attrs_post_init__(self) -> None:
         for kind, names in (
@@ -256,6 +303,13 @@ class Family:
     def names(self) -> tuple[str, ...]:
         return tuple(d.name for d in self.decisions)
 
+    def random(self, rng: np.random.Generator, count: int) -> np.ndarray:
+        """``count`` policies [count, decisions] drawn uniformly from each decision's values."""
+        if not any(d.service.choices for d in self.decisions):
+            return rng.integers(np.array(self.lows), np.array(self.highs) + 1, size=(count, len(self.decisions)))
+        columns = [rng.choice(np.array(d.service.values), size=count) for d in self.decisions]
+        return np.column_stack(columns).astype(np.int64) if columns else np.zeros((count, 0), dtype=np.int64)
+
     @property
     def lows(self) -> tuple[int, ...]:
         return tuple(d.service.low for d in self.decisions)
@@ -286,10 +340,11 @@ class Family:
                 f"policy {policy.name!r} has {len(policy.values)} values, the model has {len(self.decisions)} decisions"
             )
         for decision, value in zip(self.decisions, policy.values):
-            if not decision.service.low <= value <= decision.service.high:
+            service = decision.service
+            if not (value in service.choices if service.choices else service.low <= value <= service.high):
                 raise PolicyError(
                     f"policy {policy.name!r}: {decision.name}={value} is outside "
-                    f"{decision.service.low}..{decision.service.high}; use a value in that range"
+                    f"{service.domain_text()}; use a value in {'that set' if service.choices else 'that range'}"
                 )
 
 
@@ -335,46 +390,3 @@ class Front(Valued):
     """A Pareto front: policies whose values no other policy of the front dominates (the
     pipeline builds it from the non-dominated Storm-checked policies, in lexicographic
     order of their values)."""
-
-
-@frozen(kw_only=True)
-class Constraint:
-    """A requirement on one objective: ``success>=0.8``, ``cost<=60``."""
-
-    objective: str
-    operator: str = field(validator=validators.in_((">=", "<=")))
-    bound: float
-
-    @classmethod
-    def parse(cls, text: str) -> Constraint:
-        for operator in (">=", "<="):
-            name, sep, bound = text.partition(operator)
-            if sep:
-                try:
-                    return cls(objective=name.strip(), operator=operator, bound=float(bound))
-                except ValueError:
-                    break
-        raise OptionError(
-            f"malformed constraint {text!r}; write OBJECTIVE>=BOUND or OBJECTIVE<=BOUND, e.g. success>=0.8"
-        )
-
-    def column(self, names: Sequence[str]) -> int:
-        """The position of the constrained objective among ``names``; an unknown one is an error."""
-        if self.objective not in names:
-            raise OptionError(f"constraint {self}: no objective {self.objective!r}; objectives: {', '.join(names)}")
-        return list(names).index(self.objective)
-
-    def violation(self, values: np.ndarray) -> np.ndarray:
-        """How far values are from meeting the constraint (<= 0: met), as pymoo wants it."""
-        return self.bound - values if self.operator == ">=" else values - self.bound
-
-    def __str__(self) -> str:
-        return f"{self.objective}{self.operator}{self.bound:g}"
-
-
-def meets(values: np.ndarray, names: Sequence[str], constraints: Sequence[Constraint]) -> np.ndarray:
-    """Which rows of ``values`` (one column per objective in ``names``) meet every constraint."""
-    ok = np.ones(len(values), dtype=bool)
-    for constraint in constraints:
-        ok &= constraint.violation(values[:, constraint.column(names)]) <= 0
-    return ok

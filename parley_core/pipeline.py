@@ -19,10 +19,11 @@ from attrs import field, frozen
 from parley_core import metrics
 from parley_core.augment import augment
 from parley_core.casestudy import CaseStudy
+from parley_core.constraints import meets
 from parley_core.errors import OptionError, SearchError
 from parley_core.evaluate import Evaluator, EvaluatorKind, make_evaluator
 from parley_core.evaluate.cache import CachingEvaluator
-from parley_core.model import Family, Front, Policy, SystemModel, Valued, meets
+from parley_core.model import Family, Front, Policy, SystemModel, Valued
 from parley_core.progress import NullReporter, Reporter
 from parley_core.search import SearchResult, SearchSettings, search
 from parley_core.verify import Verification, by_search, check_with_storm, not_checked
@@ -49,6 +50,9 @@ def _timed(timings: dict[str, float], name: str) -> Iterator[None]:
 def make_family(system: SystemModel, *, prune: bool = False) -> Family:
     """Augment ``system``; with ``prune``, only at the observation valuations where some
     reachable state of some policy consults a service (found on the quotient MDP)."""
+    from parley_core.prism.properties import name_unnamed_rewards
+
+    system = name_unnamed_rewards(system)
     family = augment(system)  # also checks the model before Storm builds its quotient
     if prune:
         from parley_core.quotient.mdp import build_mdp, consulted_valuations
@@ -71,7 +75,9 @@ def prepare(case: CaseStudy, options: Any, reporter: Reporter | None = None) -> 
         family = make_family(system, prune=case.prune)
     if family.left_out:
         reporter.note(f"{len(family.left_out)} observation valuations never consult a service and are left out")
-    return Prepared(case=case, options=options, system=system, family=family, timings=timings)
+    for note in family.system.notes if family.system else ():
+        reporter.note(note)
+    return Prepared(case=case, options=options, system=family.system or system, family=family, timings=timings)
 
 
 def evaluate(
@@ -146,8 +152,10 @@ def run(
             reporter.note(
                 f"search interrupted after {result.generations} generations; writing the front of what was evaluated"
             )
-    finally:
-        engine.close()
+    except BaseException:
+        engine.close(abort=True)
+        raise
+    engine.close()
 
     names = [o.name for o in family.objectives]
     feasible = meets(result.values, names, settings.constraints)

@@ -28,9 +28,10 @@ from pymoo.operators.repair.rounding import RoundingRepair
 from pymoo.termination.max_gen import MaximumGenerationTermination
 from pymoo.termination.max_time import TimeBasedTermination
 
+from parley_core.constraints import Constraint
 from parley_core.evaluate import Evaluator
 from parley_core.evaluate.cache import CachingEvaluator
-from parley_core.model import Constraint, Family
+from parley_core.model import Family
 from parley_core.progress import Progress
 
 UNEVALUATED = 1e300
@@ -79,6 +80,39 @@ class Stop(enum.Enum):
     INTERRUPTED = "interrupted"
 
 
+class Genes:
+    """pymoo's integer genes of a family: a decision's value itself where it takes a range
+    (``1..10``), its position in its set of values where it takes a set (``{2,4}``)."""
+
+    def __init__(self, family: Family) -> None:
+        self.tables = [
+            np.array(d.service.choices, dtype=np.int64) if d.service.choices else None for d in family.decisions
+        ]
+        self.sets = [j for j, table in enumerate(self.tables) if table is not None]
+        self.lows = np.array([0 if t is not None else d.service.low for d, t in zip(family.decisions, self.tables)])
+        self.highs = np.array(
+            [len(t) - 1 if t is not None else d.service.high for d, t in zip(family.decisions, self.tables)]
+        )
+
+    def decode(self, genes: np.ndarray) -> np.ndarray:
+        """Policies (decision values) of integer genes [n, decisions]."""
+        values = np.array(genes, dtype=np.int64)
+        for j in self.sets:
+            table = self.tables[j]
+            assert table is not None
+            values[:, j] = table[values[:, j]]
+        return values
+
+    def encode(self, values: np.ndarray) -> np.ndarray:
+        """Integer genes of policies [n, decisions]."""
+        genes = np.array(values, dtype=np.int64)
+        for j in self.sets:
+            table = self.tables[j]
+            assert table is not None
+            genes[:, j] = np.searchsorted(table, genes[:, j])
+        return genes
+
+
 class EvaluationBudget(Termination):
     """Terminates once the archive holds ``budget`` policies."""
 
@@ -101,12 +135,13 @@ class PolicyProblem(Problem):
         constraints: tuple[Constraint, ...] = (),
         budget: int | None = None,
     ) -> None:
+        self.genes = Genes(family)
         super().__init__(
             n_var=len(family.decisions),
             n_obj=len(family.objectives),
             n_ieq_constr=len(constraints),
-            xl=np.array(family.lows, dtype=float),
-            xu=np.array(family.highs, dtype=float),
+            xl=self.genes.lows.astype(float),
+            xu=self.genes.highs.astype(float),
             vtype=int,
         )
         names = [o.name for o in family.objectives]
@@ -116,7 +151,7 @@ class PolicyProblem(Problem):
         self.budget = budget
 
     def _evaluate(self, x, out, *args, **kwargs) -> None:
-        policies = np.rint(np.asarray(x, dtype=float)).astype(np.int64)
+        policies = self.genes.decode(np.rint(np.asarray(x, dtype=float)).astype(np.int64))
         left = None if self.budget is None else max(0, self.budget - len(self.archive))
         values = self.archive.evaluate(policies, budget=left)
         unevaluated = np.isnan(values).all(axis=1) if left is not None else np.zeros(len(values), dtype=bool)
@@ -144,13 +179,17 @@ class SearchResult:
 
 
 def initial_population(family: Family, settings: SearchSettings) -> np.ndarray:
-    """The baselines, then uniformly random policies (from the seed) up to the population size."""
+    """The baselines, then uniformly random policies (from the seed) up to the population
+    size, as genes (:class:`Genes`)."""
     rng = np.random.default_rng(settings.seed)
-    baselines = [p.values for p in family.baseline_policies()]
-    lows, highs = np.array(family.lows), np.array(family.highs)
+    genes = Genes(family)
+    baselines = genes.encode(
+        np.array([p.values for p in family.baseline_policies()], dtype=np.int64).reshape(-1, len(genes.lows))
+    )
+    lows, highs = genes.lows, genes.highs
     n_random = max(0, settings.population - len(baselines))
     random_rows = rng.integers(lows, highs + 1, size=(n_random, len(lows)))
-    rows = np.vstack([np.array(baselines, dtype=np.int64).reshape(-1, len(lows)), random_rows])
+    rows = np.vstack([baselines, random_rows])
     return rows.astype(float)
 
 

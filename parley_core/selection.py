@@ -7,8 +7,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from parley_core import metrics
+from parley_core.constraints import Constraint, meets
 from parley_core.errors import OptionError
-from parley_core.model import Constraint, meets
 from parley_core.rundir import RunDirectory
 from parley_core.urc import URC
 

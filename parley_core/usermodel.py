@@ -29,25 +29,37 @@ from parley_core.prism import rewrite, sandbox
 
 
 def parse_decision(text: str) -> Service:
-    """``c=1..10`` or ``c=0..5:threshold`` -> a Service (frequency by default)."""
+    """``c=1..10``, ``c=0..5:threshold`` or a set of values, ``P=2,4`` (as PAYNT's holes
+    have them) -> a Service (frequency by default)."""
     name, sep, rest = text.partition("=")
     name = name.strip()
     span, _, kind = rest.partition(":")
     low_text, dots, high_text = span.partition("..")
-    if not sep or not name or not dots:
-        raise OptionError(f"malformed --decision {text!r}; write NAME=LOW..HIGH[:frequency|threshold], e.g. c=1..10")
-    try:
-        low, high = int(low_text), int(high_text)
-    except ValueError:
-        raise OptionError(f"--decision {text!r}: LOW and HIGH must be integers, e.g. c=1..10") from None
-    if high < low:
-        raise OptionError(f"--decision {text!r}: the range {low}..{high} is empty; give LOW <= HIGH")
+    if not sep or not name or not span.strip():
+        raise OptionError(
+            f"malformed --decision {text!r}; write NAME=LOW..HIGH[:frequency|threshold] or NAME=V1,V2,..., "
+            "e.g. c=1..10 or P=2,4"
+        )
     kind = kind.strip() or "frequency"
     if kind not in ("frequency", "threshold"):
         raise OptionError(f"--decision {text!r}: kind {kind!r} is neither frequency nor threshold")
     if not name.isidentifier():
         raise OptionError(f"--decision {text!r}: {name!r} is not a constant name")
-    return Service(name=name, constant=name, kind=DecisionKind(kind), low=low, high=high)
+    if dots:
+        try:
+            low, high = int(low_text), int(high_text)
+        except ValueError:
+            raise OptionError(f"--decision {text!r}: LOW and HIGH must be integers, e.g. c=1..10") from None
+        if high < low:
+            raise OptionError(f"--decision {text!r}: the range {low}..{high} is empty; give LOW <= HIGH")
+        return Service(name=name, constant=name, kind=DecisionKind(kind), low=low, high=high)
+    try:
+        values = [int(v) for v in span.strip().strip("{}").split(",")]
+    except ValueError:
+        raise OptionError(f"--decision {text!r}: the values must be integers, e.g. P=2,4") from None
+    if len(values) != len(set(values)):
+        raise OptionError(f"--decision {text!r} gives a value twice; give each once")
+    return Service.of_values(name=name, constant=name, kind=DecisionKind(kind), values=values)
 
 
 def parse_observation(items: Sequence[str]) -> tuple[str, ...]:
@@ -148,7 +160,7 @@ def system_from_file(
             raise ModelError(f"--decision {service.constant}: the constant is not an int; decisions are integers")
         if constant.defined:
             value = prism.fixed_int(constant.definition)
-            if value is not None and service.low <= value <= service.high and len(services) == 1:
+            if value is not None and value in service.values and len(services) == 1:
                 baselines.append(Baseline(name=f"model ({service.constant}={value})", values={service.constant: value}))
     for name in observation:
         prism.variable_domain(program, name, origin="--observe variable")  # exists and is bounded

@@ -9,8 +9,8 @@ from typing import Any
 import typer
 
 from parley_core.casestudy import CaseStudy
+from parley_core.constraints import Constraint
 from parley_core.errors import OptionError, ParleyDefect, ParleyError
-from parley_core.model import Constraint
 
 USER_ERROR = 2
 """The exit status of an error the user can fix (a ParleyError)."""

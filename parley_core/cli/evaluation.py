@@ -43,8 +43,10 @@ def evaluate_command(
         engine = make_evaluator(prepared.family, kind, workers)
         try:
             front = evaluate(prepared.family, chosen, engine, reporter, stage=f"evaluate ({kind.value})")
-        finally:
-            engine.close()
+        except BaseException:
+            engine.close(abort=True)
+            raise
+        engine.close()
     if json_:
         document = values_json(prepared.case, prepared.options, front)
         document["evaluator"] = kind.value

@@ -47,8 +47,9 @@ class Evaluator(Protocol):
         """``policies`` [n, n_decisions] int -> values [n, n_objectives] float."""
         ...
 
-    def close(self) -> None:
-        """Release worker processes and other resources; the evaluator may not be used afterwards."""
+    def close(self, abort: bool = False) -> None:
+        """Release worker processes and other resources; the evaluator may not be used
+        afterwards. ``abort``: an error or Ctrl-C is on its way up, end the workers at once."""
         ...
 
 

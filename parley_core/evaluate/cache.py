@@ -61,5 +61,5 @@ class CachingEvaluator:
             -1, self.n_objectives
         )
 
-    def close(self) -> None:
-        self.evaluator.close()
+    def close(self, abort: bool = False) -> None:
+        self.evaluator.close(abort)

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
@@ -20,12 +22,31 @@ def default_workers(workers: int | None = None) -> int:
     return max(1, workers if workers is not None else (os.cpu_count() or 1))
 
 
-def _start(initializer: Callable[..., Any] | None, initargs: tuple[Any, ...]) -> None:
+def _watch(parent: int) -> None:
+    """End this worker when the process that started it is gone (killed, say, while the
+    worker was deep inside Storm, where it would not notice its pipe closing)."""
+    while True:
+        time.sleep(1.0)
+        if os.getppid() != parent:
+            os._exit(1)
+
+
+def _start(initializer: Callable[..., Any] | None, initargs: tuple[Any, ...], parent: int) -> None:
     from parley_core.prism.program import quiet_storm
 
+    threading.Thread(target=_watch, args=(parent,), daemon=True, name="parley-parent-watch").start()
     quiet_storm()  # a worker is an entry point: Storm's log level is set once per process
     if initializer is not None:
         initializer(*initargs)
+
+
+def stop_pool(pool: ProcessPoolExecutor, abort: bool = False) -> None:
+    """Shut a pool down: wait for its work, or with ``abort`` (an error or Ctrl-C is on its
+    way up) end its processes at once, even one deep inside Storm."""
+    if abort:
+        for process in list(getattr(pool, "_processes", {}).values()):
+            process.terminate()
+    pool.shutdown(wait=not abort, cancel_futures=True)
 
 
 def spawn_pool(
@@ -36,5 +57,5 @@ def spawn_pool(
         max_workers=workers,
         mp_context=multiprocessing.get_context("spawn"),
         initializer=_start,
-        initargs=(initializer, initargs),
+        initargs=(initializer, initargs, os.getpid()),
     )

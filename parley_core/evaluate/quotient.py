@@ -15,7 +15,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from parley_core.evaluate.pool import default_workers, spawn_pool
+from parley_core.evaluate.pool import default_workers, spawn_pool, stop_pool
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.model import Family
 from parley_core.progress import Progress
@@ -31,9 +31,11 @@ def _worker_start(quotient: Quotient) -> None:
     _SOLVER[:] = [QuotientSolver(quotient)]
 
 
-def _worker_solve(rows: np.ndarray) -> np.ndarray:
+def _worker_solve(rows: np.ndarray) -> tuple[np.ndarray, int]:
     solver = _SOLVER[0]
-    return np.array([[np.nan if v is None else v for v in solver.solve(row)] for row in rows])
+    before = solver.direct_solves
+    values = np.array([[np.nan if v is None else v for v in solver.solve(row)] for row in rows])
+    return values, solver.direct_solves - before
 
 
 class QuotientEvaluator:
@@ -60,6 +62,10 @@ class QuotientEvaluator:
         self.fallback = tuple(o.name for o, q in zip(family.objectives, self.quotient.objectives) if q is None)
         self._storm: StormEvaluator | None = None
         self._pool: ProcessPoolExecutor | None = None
+        self.direct_solves = 0
+        """Policies whose sweeps could not be certified and were solved directly."""
+        self.uncertified = 0
+        """Policies no solve of the quotient could certify, checked by Storm instead."""
 
     def evaluate(self, policies: np.ndarray, progress: Progress | None = None) -> np.ndarray:
         policies = np.asarray(policies, dtype=np.int64).reshape(-1, len(self.family.decisions))
@@ -69,22 +75,37 @@ class QuotientEvaluator:
             futures = [pool.submit(_worker_solve, chunk) for chunk in chunks]
             parts = []
             for future, chunk in zip(futures, chunks):
-                parts.append(future.result())
+                part, direct = future.result()
+                parts.append(part)
+                self.direct_solves += direct
                 if progress:
                     progress(len(chunk))
             values = np.vstack(parts)
         else:
             values = np.empty((len(policies), len(self.family.objectives)))
+            before = self.solver.direct_solves
             for i, row in enumerate(policies):
                 values[i] = [np.nan if v is None else v for v in self.solver.solve(row)]
                 if progress:
                     progress(1)
-        if self.fallback:
-            missing = [i for i, q in enumerate(self.quotient.objectives) if q is None]
-            if self._storm is None:
-                self._storm = StormEvaluator(self.family, workers=self.workers)
-            values[:, missing] = self._storm.evaluate(policies)[:, missing]
+            self.direct_solves += self.solver.direct_solves - before
+        missing = [i for i, q in enumerate(self.quotient.objectives) if q is None]
+        if missing:
+            values[:, missing] = self._storm_values(policies)[:, missing]
+        # a value no solve could certify is NaN: Storm checks those policies instead
+        supported = [i for i, q in enumerate(self.quotient.objectives) if q is not None]
+        uncertain = (
+            np.flatnonzero(np.isnan(values[:, supported]).any(axis=1)) if supported else np.zeros(0, dtype=np.int64)
+        )
+        if len(uncertain):
+            self.uncertified += len(uncertain)
+            values[uncertain] = self._storm_values(policies[uncertain])
         return values
+
+    def _storm_values(self, policies: np.ndarray) -> np.ndarray:
+        if self._storm is None:
+            self._storm = StormEvaluator(self.family, workers=self.workers)
+        return self._storm.evaluate(policies)
 
     def describe(self) -> dict[str, object]:
         """The quotient's size and the objectives Storm checks instead, for the run's summary."""
@@ -93,6 +114,8 @@ class QuotientEvaluator:
             "quotient_choices": self.quotient.choices,
             "quotient_transitions": self.quotient.branches,
             "objectives_checked_by_storm": list(self.fallback),
+            "direct_solves": self.direct_solves,
+            "policies_checked_by_storm_uncertified": self.uncertified,
         }
 
     def _executor(self) -> ProcessPoolExecutor:
@@ -100,16 +123,17 @@ class QuotientEvaluator:
             self._pool = spawn_pool(self.workers, initializer=_worker_start, initargs=(self.quotient,))
         return self._pool
 
-    def close(self) -> None:
+    def close(self, abort: bool = False) -> None:
+        """Release the workers (``abort``: end them at once, on an error or Ctrl-C)."""
         if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
+            stop_pool(self._pool, abort)
             self._pool = None
         if self._storm is not None:
-            self._storm.close()
+            self._storm.close(abort)
             self._storm = None
 
     def __enter__(self) -> QuotientEvaluator:
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, kind, *exc) -> None:
+        self.close(abort=kind is not None)

@@ -1,4 +1,8 @@
-"""The reference evaluator: instantiate, build with Storm, check. Slow and simple, and the judge."""
+"""The reference evaluator: instantiate, build with Storm, check. Slow and simple, and the judge.
+
+A small policy DTMC (:data:`EXACT_STATES`) is checked in exact rational arithmetic; a larger
+one by sound value iteration with the precision chosen per property shape
+(:func:`check_value`)."""
 
 from __future__ import annotations
 
@@ -10,10 +14,15 @@ import stormpy.developer as storm_dev
 from attrs import frozen
 
 from parley_core.errors import ModelError
-from parley_core.evaluate.pool import default_workers, spawn_pool
+from parley_core.evaluate.pool import default_workers, spawn_pool, stop_pool
 from parley_core.model import Family
 from parley_core.prism import program as prism
 from parley_core.progress import Progress
+
+EXACT_STATES = 4_000
+"""A policy's DTMC up to this many states is checked in exact rational arithmetic (dpm's
+3,896 states: 0.1 s; a 10x10 robot's 5,317: 1.2 s, against 0.08 s with sound value
+iteration), where no precision needs choosing and slowly mixing chains cost nothing more."""
 
 PRECISION = 1e-12
 """The precision of Storm's equation solving: relative for probabilities, relative to the
@@ -107,14 +116,20 @@ class StormChecker:
         )
         try:
             model = stormpy.build_model(instance, self.properties)
+            if model.nr_states <= EXACT_STATES:
+                model = stormpy.build_model[stormpy.Rational](instance, self.properties)
         except RuntimeError as exc:
             raise ModelError(f"Storm cannot build the model: {prism.storm_message(exc)}") from None
         if len(model.initial_states) != 1:
             raise ModelError(f"the model has {len(model.initial_states)} initial states; parley needs exactly one")
+        exact = model.nr_states <= EXACT_STATES
         result = []
         for prop, name in zip(self.properties, self.task.objective_names):
             try:
-                result.append(check_value(model, prop, self.environment))
+                if exact:
+                    result.append(float(stormpy.model_checking(model, prop).get_value(model.initial_states[0])))
+                else:
+                    result.append(check_value(model, prop, self.environment))
             except RuntimeError as exc:
                 raise ModelError(f"Storm cannot check objective {name!r}: {prism.storm_message(exc)}") from None
         return result
@@ -167,13 +182,14 @@ class StormEvaluator:
             self._pool = spawn_pool(self.workers)
         return self._pool
 
-    def close(self) -> None:
+    def close(self, abort: bool = False) -> None:
+        """Release the workers (``abort``: end them at once, on an error or Ctrl-C)."""
         if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
+            stop_pool(self._pool, abort)
             self._pool = None
 
     def __enter__(self) -> StormEvaluator:
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, kind, *exc) -> None:
+        self.close(abort=kind is not None)

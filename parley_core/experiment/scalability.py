@@ -44,8 +44,7 @@ def measure(
 ) -> dict[str, Any]:
     family = make_family(case.build(case.options(assignments)), prune=case.prune)
     rng = np.random.default_rng(seed)
-    lows, highs = np.array(family.lows), np.array(family.highs)
-    policies = rng.integers(lows, highs + 1, size=(max(storm_policies, quotient_policies), len(family.decisions)))
+    policies = family.random(rng, max(storm_policies, quotient_policies))
 
     start = time.perf_counter()
     quotient = QuotientEvaluator(family, workers=1)

@@ -65,21 +65,29 @@ def parse_properties(formulas: Iterable[str], program: PrismProgram, *, origin: 
     return parsed
 
 
-def check_property_references(prop, program: PrismProgram, *, origin: str) -> None:
-    """Reject a reward property naming a reward structure the program lacks (labels are checked by Storm
-    when building)."""
+def reward_structures(program: PrismProgram, ignore: Iterable[str] = ()) -> list[str]:
+    """The names of the program's reward structures, in order (``""`` for an unnamed one),
+    without those in ``ignore`` (parley's own)."""
+    left_out = set(ignore)
+    return [r.name for r in program.reward_models if r.name not in left_out]
+
+
+def check_property_references(prop, program: PrismProgram, *, origin: str, ignore: Iterable[str] = ()) -> None:
+    """Reject a reward property naming a reward structure the program lacks, or naming none
+    when the program has several (labels are checked by Storm when building). ``ignore``:
+    reward structures of parley's own, which the user's properties cannot mean."""
     formula = prop.get_raw_formula()
     if formula.is_reward_operator_formula:
+        structures = reward_structures(program, ignore)
         if formula.has_reward_model_name():
-            if not program.has_reward_model(formula.reward_name):
-                names = ", ".join(f'"{r.name}"' for r in program.reward_models) or "none"
+            if formula.reward_name not in structures:
+                names = ", ".join(f'"{name}"' if name else "an unnamed one" for name in structures) or "none"
                 raise ModelError(
                     f'{origin} uses reward structure "{formula.reward_name}", which the model lacks; it has: {names}'
                 )
-        elif len(program.reward_models) != 1:
+        elif len(structures) != 1:
             raise ModelError(
-                f"{origin} names no reward structure and the model has {len(program.reward_models)}; "
-                'write R{"name"}=? [...]'
+                f'{origin} names no reward structure and the model has {len(structures)}; write R{{"name"}}=? [...]'
             )
 
 

@@ -10,10 +10,14 @@ reward formula, so those two are read from Storm's own printing of the path form
 from __future__ import annotations
 
 import enum
+from collections.abc import Iterable
 
+import attrs
 import stormpy.logic as logic
 from attrs import field, frozen
 
+from parley_core.errors import ModelError
+from parley_core.model import SystemModel
 from parley_core.prism import program as prism
 
 
@@ -60,17 +64,49 @@ def _is_true(formula) -> bool:
     return isinstance(formula, logic.BooleanLiteralFormula) and str(formula) == "true"
 
 
-def reward_name(formula, program) -> str | None:
+def reward_name(formula, program, ignore: Iterable[str] = ()) -> str | None:
     """The reward structure a reward operator formula refers to: its own name, else the
-    program's only one (None if it has several or none)."""
+    program's only one (None if it has several or none); structures in ``ignore`` (parley's
+    own) do not count."""
     if formula.has_reward_model_name():
         return formula.reward_name
-    models = list(program.reward_models)
-    return models[0].name if len(models) == 1 else None
+    structures = prism.reward_structures(program, ignore)
+    return structures[0] if len(structures) == 1 else None
 
 
-def shape(prop, program) -> PropertyShape:
-    """The shape of a parsed property (``stormpy.Property``) of ``program``."""
+def name_unnamed_rewards(system: SystemModel) -> SystemModel:
+    """The system with every objective ``R=? [...]`` that names no reward structure, in a
+    model with several, naming the first one, as PRISM does (Storm refuses such a property
+    as ambiguous); ``system.notes`` says so. Both evaluators then read the same structure."""
+    program = prism.parse_program(system.prism, origin=f"the {system.name} model")
+    structures = prism.reward_structures(program)
+    if len(structures) < 2:
+        return system
+    objectives, notes = [], list(system.notes)
+    for objective in system.objectives:
+        (prop,) = prism.parse_properties([objective.formula], program, origin=f"objective {objective.name!r}")
+        formula = prop.get_raw_formula()
+        if formula.is_reward_operator_formula and not formula.has_reward_model_name():
+            first = structures[0]
+            if not first:
+                raise ModelError(
+                    f"objective {objective.name!r} names no reward structure and the first of the model's "
+                    f'{len(structures)} has no name; name them and write R{{"name"}}=? [...]'
+                )
+            named = f'R{{"{first}"}}' + str(formula)[1:]
+            prism.parse_properties([named], program, origin=f"objective {objective.name!r}")
+            notes.append(
+                f"objective {objective.name} names no reward structure and the model has {len(structures)}; "
+                f'parley uses the first, "{first}", as PRISM does: {named}'
+            )
+            objective = attrs.evolve(objective, formula=named)
+        objectives.append(objective)
+    return attrs.evolve(system, objectives=objectives, notes=tuple(notes))
+
+
+def shape(prop, program, ignore: Iterable[str] = ()) -> PropertyShape:
+    """The shape of a parsed property (``stormpy.Property``) of ``program``; reward
+    structures in ``ignore`` (parley's own) do not count when a property names none."""
     formula = prop.get_raw_formula()
     if not (formula.is_probability_operator_formula or formula.is_reward_operator_formula):
         return _other("it is neither a P nor an R operator")
@@ -91,7 +127,7 @@ def shape(prop, program) -> PropertyShape:
             left = None if _is_true(sub.left_subformula) else sub.left_subformula
             return PropertyShape(kind=Shape.BOUNDED_UNTIL, left=left, right=sub.right_subformula, steps=steps)
         return _other("its path formula is not F, U, F<=k or U<=k")
-    reward = reward_name(formula, program)
+    reward = reward_name(formula, program, ignore)
     if sub.is_eventually_formula:
         return PropertyShape(kind=Shape.REACH_REWARD, right=sub.subformula, reward=reward)
     text = str(sub)  # stormpy binds neither the bound of C<=k nor a class for C

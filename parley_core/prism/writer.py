@@ -7,7 +7,7 @@ PRISM expression strings; the result is always parsed back by stormpy before it 
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 
 from attrs import field, frozen
 
@@ -187,13 +187,15 @@ FORMATS = ("prism", "evochecker", "paynt")
 """The syntaxes a decision constant can be declared in (``parley augment --format``)."""
 
 
-def declaration(name: str, low: int, high: int, form: str = "prism") -> str:
+def declaration(name: str, values: Sequence[int], form: str = "prism") -> str:
     """A decision constant's declaration: PRISM's undefined ``const int``, EvoChecker's
-    ``evolve int`` with its range, or PAYNT's ``hole`` with its values."""
+    ``evolve int`` with its range, or PAYNT's ``hole`` with its values (in increasing order)."""
     if form == "prism":
         return f"const int {name};"
     if form == "evochecker":
-        return f"evolve int {name} [{low}..{high}];"
+        if list(values) != list(range(values[0], values[-1] + 1)):
+            raise ValueError(f"EvoChecker's evolve int needs a range, and {name} takes {list(values)}")
+        return f"evolve int {name} [{values[0]}..{values[-1]}];"
     if form == "paynt":
-        return f"hole int {name} in {{{','.join(str(v) for v in range(low, high + 1))}}};"
+        return f"hole int {name} in {{{','.join(str(v) for v in values)}}};"
     raise ValueError(f"unknown declaration form {form!r}; valid: {', '.join(FORMATS)}")

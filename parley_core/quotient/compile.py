@@ -16,6 +16,7 @@ import stormpy
 from attrs import field, frozen
 
 from parley_core.prism.properties import Shape, reward_name, shape
+from parley_core.prism.rewrite import OBSERVATION_REWARD
 from parley_core.quotient.mdp import QuotientMDP
 
 
@@ -50,7 +51,7 @@ def reward_names(mdp: QuotientMDP) -> list[str]:
     for prop in mdp.properties:
         formula = prop.get_raw_formula()
         if formula.is_reward_operator_formula:
-            name = reward_name(formula, mdp.program)
+            name = reward_name(formula, mdp.program, (OBSERVATION_REWARD,))
             if name is not None:
                 names.add(name)
     return sorted(names)
@@ -93,7 +94,7 @@ def states(model, formula) -> np.ndarray | None:
 
 def compile_objective(mdp: QuotientMDP, prop, names: list[str]) -> KernelObjective | None:
     """The kernel form of a property, or None if the quotient evaluator does not support it."""
-    found = shape(prop, mdp.program)
+    found = shape(prop, mdp.program, (OBSERVATION_REWARD,))
     model = mdp.model
     if found.kind in (Shape.UNTIL, Shape.BOUNDED_UNTIL):
         left = np.ones(model.nr_states, bool) if found.left is None else states(model, found.left)

@@ -67,7 +67,9 @@ def build_mdp(system: SystemModel, formulas: Sequence[str] = (), objective_names
     properties = prism.parse_properties(formulas, program, origin="objective")
     names = list(objective_names) or [str(f) for f in formulas]
     for prop, name in zip(properties, names):
-        prism.check_property_references(prop, program, origin=f"objective {name!r}")
+        prism.check_property_references(
+            prop, program, origin=f"objective {name!r}", ignore=(rewrite.OBSERVATION_REWARD,)
+        )
     options = stormpy.BuilderOptions(properties) if properties else stormpy.BuilderOptions()
     options.set_build_choice_origins()
     options.set_build_all_reward_models()
@@ -142,6 +144,14 @@ def read_umb(model) -> tuple[dict[str, np.ndarray], frozenset[str]]:
                 raise RuntimeError("Storm's UMB export has no index.json")
             rewards = json.loads(index.read()).get("annotations", {}).get("rewards", {})
             alias = {key: str(entry.get("alias", key)) for key, entry in rewards.items()}
+            built = set(model.reward_models)
+            for key, name in alias.items():  # UMB calls an unnamed structure "default"
+                if name not in built and "" in built:
+                    alias[key] = ""
+            if set(alias.values()) != built:
+                raise RuntimeError(
+                    f"Storm's UMB export names rewards {sorted(alias.values())}, the model has {sorted(built)}"
+                )
             for member in archive.getmembers():
                 if not member.isfile() or not member.name.endswith(".bin"):
                     continue

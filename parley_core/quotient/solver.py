@@ -11,13 +11,20 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
+from scipy.sparse.linalg import splu
 
 from parley_core.quotient import kernels
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.compile import KernelKind
 
 TOLERANCE = 1e-12
+"""Gauss-Seidel stops when no value moves by more than this, relative to its size."""
 MAX_SWEEPS = 1_000_000
+CERTIFIED = 1e-10
+"""The largest error a reported unbounded value may have, relative to its size (at least 1):
+a value that cannot be certified within it is solved again directly, or left to Storm."""
+CERTIFY_SWEEPS = 2_000
+"""Sweeps for the rough solution of the certificate; a chain that needs more gets a direct solve."""
 
 
 class QuotientSolver:
@@ -41,6 +48,10 @@ class QuotientSolver:
         self.levels = np.empty(n, dtype=np.int64)
         self.chosen = np.empty(max(1, int(np.diff(quotient.state_choices).max(initial=0))), dtype=np.int64)
         self.last_states = 0
+        self.direct_solves = 0
+        """Solves the sweeps could not certify, done again by a direct solve."""
+        self.uncertified = 0
+        """Values no solve could certify (NaN: the evaluator has Storm check them)."""
         # C<=k objectives with the same k share one forward pass: {k: (objectives, rewards)}
         self.cumulative: dict[int, tuple[list[int], np.ndarray]] = {}
         for i, objective in enumerate(quotient.objectives):
@@ -87,16 +98,12 @@ class QuotientSolver:
         if objective.kind is KernelKind.UNTIL:
             left, right = objective.left[order], objective.right[order]
             # Iterating from 0, a state that cannot reach a right state keeps exactly 0 (the
-            # value Storm's prob0 analysis gives it), so the full graph analysis is only
-            # needed for the direct solve after a sweep limit, where those states make I - P
-            # singular. One cheap pass finds most of them and leaves them out of the sweeps.
+            # value Storm's prob0 analysis gives it). One cheap pass finds most of them and
+            # leaves them out of the sweeps; the certificate and the direct solve need all.
             free = left & ~right & ~kernels.cannot_reach(count, indptr, cols, right, left)
-            x = np.where(right, 1.0, 0.0)
-            if self._sweeps(count, indptr, cols, vals, free, x, np.zeros(count)):
-                return float(x[0])
             can = kernels.backward_reach(count, indptr, cols, right, left)
             x = np.where(right, 1.0, 0.0)
-            return self._gauss_seidel(count, indptr, cols, vals, can & ~right, x, np.zeros(count))
+            return self._solve(count, indptr, cols, vals, free, x, np.zeros(count), can & ~right)
         if objective.kind is KernelKind.BOUNDED:
             left, right = objective.left[order], objective.right[order]
             x = np.where(right, 1.0, 0.0)
@@ -113,7 +120,8 @@ class QuotientSolver:
             if infinite[0]:
                 return float("inf")
             free = ~right & ~infinite
-            return self._gauss_seidel(count, indptr, cols, vals, free, np.zeros(count), np.where(free, reward, 0.0))
+            constant = np.where(free, reward, 0.0)
+            return self._solve(count, indptr, cols, vals, free, np.zeros(count), constant, free)
         if objective.kind is KernelKind.TOTAL:
             matrix = sp.csr_matrix((vals, cols, indptr), shape=(count, count))
             _, labels = csgraph.connected_components(matrix, directed=True, connection="strong")
@@ -129,10 +137,63 @@ class QuotientSolver:
             if infinite[0]:
                 return float("inf")
             free = ~bottom & ~infinite
-            return self._gauss_seidel(count, indptr, cols, vals, free, np.zeros(count), np.where(free, reward, 0.0))
+            constant = np.where(free, reward, 0.0)
+            return self._solve(count, indptr, cols, vals, free, np.zeros(count), constant, free)
         raise ValueError(objective.kind)
 
-    def _sweeps(self, count, indptr, cols, vals, free, x, constant) -> bool:
+    def _solve(self, count, indptr, cols, vals, free, x, constant, exact) -> float:
+        """x[0] for x = constant + P x on the ``free`` states, certified: Gauss-Seidel sweeps
+        first, a direct sparse solve if they do not converge or cannot be certified, and NaN
+        if neither can be (the evaluator has Storm check that policy instead). ``exact``
+        are the states whose values the equations determine (``free`` minus any it holds
+        that keep their value anyway); the certificate (:func:`.kernels.certify`) bounds the
+        error at the initial state by :data:`CERTIFIED` times its size (at least 1)."""
+        converged, lumped, rows = self._sweeps(count, indptr, cols, vals, free, x, constant)
+        if converged:
+            checked = rows[exact[rows]]
+            lumped_ptr, lumped_cols, lumped_vals, lumped_constant = lumped
+            bound = kernels.certify(lumped_ptr, lumped_cols, lumped_vals, checked, x, lumped_constant, CERTIFY_SWEEPS)
+            if bound <= CERTIFIED * max(1.0, abs(x[0])):
+                return float(x[0])
+        self.direct_solves += 1
+        return self._direct(count, indptr, cols, vals, exact, x, constant)
+
+    def _direct(self, count, indptr, cols, vals, free, x, constant) -> float:
+        """x[0] by a sparse LU solve of (I - P) x = constant + P_fixed x on the ``free``
+        states, with the same bound as :func:`.kernels.certify` computed from the LU
+        solution of (I - P) h = 1; NaN if the bound exceeds :data:`CERTIFIED`."""
+        idx = np.flatnonzero(free)
+        if not free[0]:
+            return float(x[0])
+        matrix = sp.csr_matrix((vals, cols, indptr), shape=(count, count))
+        system = (sp.identity(len(idx)) - matrix[idx][:, idx]).tocsc()
+        rhs = constant[idx] + matrix[idx][:, np.flatnonzero(~free)] @ x[~free]
+        try:
+            factors = splu(system)
+        except RuntimeError:  # singular: the equations do not determine the values
+            self.uncertified += 1
+            return float("nan")
+        solution = factors.solve(rhs)
+        solution += factors.solve(rhs - system @ solution)  # one step of iterative refinement
+        residual = np.abs(rhs - system @ solution)
+        # x* - x = N r with N = (I - P)^-1 >= 0, so |x* - x| <= N |r|: e = N |r| solved with
+        # the same factors, and its own error bounded the same way (|e* - e| <= max|r_e| N 1,
+        # N 1 <= 2 h when h solves (I - P) h = 1 with a residual at most 1/2)
+        error = factors.solve(residual)
+        steps = factors.solve(np.ones(len(idx)))
+        worst = float(np.abs(1.0 - system @ steps).max(initial=0.0))
+        slack = float(np.abs(residual - system @ error).max(initial=0.0))
+        x[idx] = solution
+        value = float(x[0])
+        start = int(np.searchsorted(idx, 0))
+        if worst <= 0.5:
+            bound = abs(error[start]) + slack * 2.0 * abs(steps[start])
+            if bound <= CERTIFIED * max(1.0, abs(value)):
+                return value
+        self.uncertified += 1
+        return float("nan")
+
+    def _sweeps(self, count, indptr, cols, vals, free, x, constant):
         """Gauss-Seidel for x = constant + P x on the ``free`` states, in reverse breadth-first
         order, with the states that only pass probability on (one transition, probability
         1) substituted away; x[0] holds the value when it returns True (converged)."""
@@ -142,14 +203,5 @@ class QuotientSolver:
             count, indptr, cols, vals, through, constant
         )
         rows = np.flatnonzero(free & (through < 0))[::-1].copy()
-        return kernels.gauss_seidel(*lumped[:3], rows, x, lumped[3], TOLERANCE, MAX_SWEEPS) >= 0
-
-    def _gauss_seidel(self, count, indptr, cols, vals, free, x, constant) -> float:
-        if not self._sweeps(count, indptr, cols, vals, free, x, constant):
-            # no convergence: a direct solve on the free states
-            idx = np.flatnonzero(free)
-            matrix = sp.csr_matrix((vals, cols, indptr), shape=(count, count))
-            sub = matrix[idx][:, idx]
-            rhs = constant[idx] + matrix[idx][:, np.flatnonzero(~free)] @ x[~free]
-            x[idx] = sp.linalg.spsolve((sp.identity(len(idx)) - sub).tocsc(), rhs)
-        return float(x[0])
+        converged = kernels.gauss_seidel(*lumped[:3], rows, x, lumped[3], TOLERANCE, MAX_SWEEPS) >= 0
+        return converged, lumped, rows
