@@ -20,9 +20,11 @@ from parley_core.prism import program as prism
 from parley_core.progress import Progress
 
 EXACT_STATES = 4_000
-"""A policy's DTMC up to this many states is checked in exact rational arithmetic (dpm's
-3,896 states: 0.1 s; a 10x10 robot's 5,317: 1.2 s, against 0.08 s with sound value
-iteration), where no precision needs choosing and slowly mixing chains cost nothing more."""
+"""An unbounded reward (``R=? [F phi]``, ``R=? [C]``) of a policy DTMC up to this many
+states is checked in exact rational arithmetic (PAYNT's dpm, 3,896 states: 0.1 s for both
+objectives; maze, whose expected steps reach 10^5, 4 ms where sound value iteration took
+10 s). Other objectives, and larger models, get sound value iteration (:func:`check_value`):
+exact arithmetic costs 2-6 times as much on step-bounded objectives (robot_grid's C<=k)."""
 
 PRECISION = 1e-12
 """The precision of Storm's equation solving: relative for probabilities, relative to the
@@ -48,6 +50,14 @@ def reference_environment(precision: float = PRECISION, relative: bool = True) -
     return environment
 
 
+def unbounded_reward(prop) -> bool:
+    """Whether a property is a reward over an unbounded horizon (``R=? [F phi]``, ``R=? [C]``)."""
+    formula = prop.get_raw_formula()
+    return bool(formula.is_reward_operator_formula) and not isinstance(
+        formula.subformula, (stormpy.logic.CumulativeRewardFormula, stormpy.logic.InstantaneousRewardFormula)
+    )
+
+
 def check_value(model, prop, relative_environment: stormpy.Environment) -> float:
     """One property's value at the model's initial state, by sound value iteration.
 
@@ -60,12 +70,7 @@ def check_value(model, prop, relative_environment: stormpy.Environment) -> float
     default solver estimates first (a bound of 1e-12 relative to the largest value; the
     estimate only sets where to stop, the bound is sound value iteration's)."""
     initial = model.initial_states[0]
-    formula = prop.get_raw_formula()
-    sub = formula.subformula
-    unbounded_reward = formula.is_reward_operator_formula and not isinstance(
-        sub, (stormpy.logic.CumulativeRewardFormula, stormpy.logic.InstantaneousRewardFormula)
-    )
-    if not unbounded_reward:
+    if not unbounded_reward(prop):
         return float(stormpy.model_checking(model, prop, environment=relative_environment).get_value(initial))
     estimate = np.asarray(stormpy.model_checking(model, prop).get_value_vector(), dtype=float)
     finite = estimate[np.isfinite(estimate)]
@@ -108,6 +113,7 @@ class StormChecker:
             raise ModelError(f"the augmented model lacks decision constants {', '.join(missing[:5])}")
         self.variables = [by_name[n] for n in task.names]
         self.environment = reference_environment()
+        self.unbounded_rewards = [unbounded_reward(p) for p in self.properties]
 
     def check(self, values) -> list[float]:
         manager = self.program.expression_manager
@@ -116,18 +122,18 @@ class StormChecker:
         )
         try:
             model = stormpy.build_model(instance, self.properties)
-            if model.nr_states <= EXACT_STATES:
-                model = stormpy.build_model[stormpy.Rational](instance, self.properties)
+            exact = None
+            if model.nr_states <= EXACT_STATES and any(self.unbounded_rewards):
+                exact = stormpy.build_model[stormpy.Rational](instance, self.properties)
         except RuntimeError as exc:
             raise ModelError(f"Storm cannot build the model: {prism.storm_message(exc)}") from None
         if len(model.initial_states) != 1:
             raise ModelError(f"the model has {len(model.initial_states)} initial states; parley needs exactly one")
-        exact = model.nr_states <= EXACT_STATES
         result = []
-        for prop, name in zip(self.properties, self.task.objective_names):
+        for prop, name, unbounded in zip(self.properties, self.task.objective_names, self.unbounded_rewards):
             try:
-                if exact:
-                    result.append(float(stormpy.model_checking(model, prop).get_value(model.initial_states[0])))
+                if exact is not None and unbounded:
+                    result.append(float(stormpy.model_checking(exact, prop).get_value(exact.initial_states[0])))
                 else:
                     result.append(check_value(model, prop, self.environment))
             except RuntimeError as exc:
