@@ -169,6 +169,13 @@ def plot_front(result: RunResult, path: Path) -> None:
             )
         ax.set_xlabel(f"{objectives[i].name} ({objectives[i].direction.value})")
         ax.set_ylabel(f"{objectives[j].name} ({objectives[j].direction.value})")
+    else:  # one objective: the values on a line, the front's best and the baselines
+        base = np.array(result.baseline.values)[:, 0]
+        best = np.array(result.front.values)[:, 0]
+        ax.scatter(base, np.zeros(len(base)), marker="x", color="tab:red", s=36, label=f"baseline ({len(base)})")
+        ax.scatter(best, np.zeros(len(best)), s=90, color="tab:blue", label="parley's best")
+        ax.set_yticks([])
+        ax.set_xlabel(f"{objectives[0].name} ({objectives[0].direction.value})")
     ax.set_title(f"{result.prepared.case.name}: front vs baseline", fontsize=11)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)

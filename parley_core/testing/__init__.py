@@ -76,9 +76,12 @@ def family(
     return make_family(system, prune=case.prune if prune is None else prune)
 
 
-def values(family: Family, policies: Policy | Sequence[Policy] | np.ndarray, evaluator: str = "storm") -> np.ndarray:
+def values(
+    family: Family, policies: Policy | Sequence[Policy] | np.ndarray, evaluator: str = "storm", workers: int = 1
+) -> np.ndarray:
     """The objective values [policies, objectives] of policies of ``family``, by the Storm
-    evaluator (the reference; default) or the quotient evaluator, in this process."""
+    evaluator (the reference; default) or the quotient evaluator, in this process (or in
+    ``workers`` processes)."""
     from parley_core.evaluate import make_evaluator
 
     if isinstance(policies, Policy):
@@ -89,7 +92,7 @@ def values(family: Family, policies: Policy | Sequence[Policy] | np.ndarray, eva
         for policy in policies:
             family.check(policy)
         rows = np.array([p.values for p in policies], dtype=np.int64).reshape(-1, len(family.decisions))
-    engine = make_evaluator(family, evaluator, workers=1)
+    engine = make_evaluator(family, evaluator, workers=workers)
     try:
         return engine.evaluate(rows)
     finally:
