@@ -52,6 +52,11 @@ def _augment(system: SystemModel, kept: set[tuple[int, ...]] | None, form: str) 
     program = prism.parse_program(system.prism, origin=origin)
     if program.model_type != PrismModelType.DTMC:
         raise ModelError(f"{origin} is a {program.model_type.name} but parley needs a DTMC; declare it with `dtmc`")
+    if program.has_initial_states_expression:
+        raise ModelError(
+            f"{origin} has an init ... endinit block; parley needs exactly one initial state: "
+            "give each variable an init value instead"
+        )
 
     service_vars = rewrite.service_variables(program, system.services, origin)
     undefined = sorted(c.name for c in program.constants if not c.defined and c.name not in service_vars)
@@ -82,6 +87,16 @@ def _augment(system: SystemModel, kept: set[tuple[int, ...]] | None, form: str) 
 
     rewritten = rewrite.copy_service_commands(program, system, service_vars, lambda _command, _used: copies, origin)
     unused = [s.constant for s in system.services if s.constant not in rewritten.used]
+    through = {
+        name: [c.name for c in program.constants if c.defined and c.definition.contains_variable({service_vars[name]})]
+        for name in unused
+    }
+    indirect = [f"{name} (through {', '.join(others)})" for name, others in through.items() if others]
+    if indirect:
+        raise ModelError(
+            f"{origin} uses service constant(s) {', '.join(indirect)} only through other constants; parley needs "
+            "the service constant itself in the commands' guards or updates: write the other constant's definition there"
+        )
     if unused:
         raise ModelError(
             f"constant(s) {', '.join(unused)} are used in no command of {origin}; "
@@ -108,7 +123,13 @@ def _augment(system: SystemModel, kept: set[tuple[int, ...]] | None, form: str) 
 
 
 def _validate(family: Family, origin: str) -> None:
-    program = prism.parse_program(family.prism, origin=f"the augmented {origin}")
+    try:
+        program = prism.parse_program(family.prism, origin=f"the augmented {origin}")
+    except ModelError as exc:
+        raise ModelError(
+            f"augmenting {origin} gives a model that does not parse ({exc}); most likely a service constant is "
+            "used outside the commands' guards and updates (in a formula, label or reward): use it only there"
+        ) from None
     undefined = {c.name for c in program.get_undefined_constants()}
     expected = set(family.names)
     if undefined != expected:

@@ -15,13 +15,14 @@ Every problem is a ParleyError with one line saying what to do.
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Sequence
 from pathlib import Path
 
 from attrs import field, frozen
 
 from parley_core.casestudy import CaseStudy
-from parley_core.errors import ModelError, OptionError
+from parley_core.errors import ModelError, OptionError, ParleyDefect
 from parley_core.files import read_text
 from parley_core.model import Baseline, Decision, DecisionKind, Direction, Family, Objective, Service, SystemModel
 from parley_core.prism import program as prism
@@ -147,6 +148,11 @@ def system_from_file(
                 raise ModelError(
                     f"constant {constant.name} = {constant.definition} is not a finite integer; fix its definition"
                 )
+    if program.has_initial_states_expression:  # Storm's builder crashes on it with undefined constants
+        raise ModelError(
+            f"model {path} has an init ... endinit block; parley needs exactly one initial state: "
+            "give each variable an init value instead"
+        )
     _check_storm_survives(path, lambda: program, {s.constant: s.low for s in services})
     baselines = []
     for service in services:
@@ -212,10 +218,15 @@ def _check_storm_survives(path: Path, make, values) -> None:
     update or probability, also one that only some decision values or states reach: build
     ``make()`` in a forked child first."""
     crash = sandbox.build_crashes(make, values)
-    if crash is not None:
+    if crash == signal.SIGFPE:
         raise ModelError(
-            f"Storm crashes (signal {crash}) building model {path}, most likely on an integer division by zero "
+            f"Storm crashes (SIGFPE) building model {path}, on an integer division by zero "
             "in a guard, update or probability (for some decision value); fix the expression"
+        )
+    if crash is not None:
+        raise ParleyDefect(
+            f"Storm crashes (signal {crash}) building model {path}; please report it with the model "
+            "(parley refused to go on rather than crash)"
         )
 
 

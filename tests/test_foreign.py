@@ -83,6 +83,14 @@ MODELS = [
     ),
     Foreign(
         folder="prism-brp",
+        model="brp.pm",
+        properties="brp.pctl",
+        decisions=("MAX=-2..3",),
+        observe=("i",),
+        note="values of MAX that leave states without an enabled command: each policy's own deadlocks",
+    ),
+    Foreign(
+        folder="prism-brp",
         model="brp-orig-N16.pm",
         properties="brp-unnamed.pctl",
         decisions=("MAX=1..6",),

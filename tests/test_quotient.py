@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from parley_core.augment import augment
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.evaluate.storm import StormEvaluator
-from parley_core.model import Objective
+from parley_core.model import DecisionKind, Objective, Service
 from parley_plugins.robot_grid import CASE_STUDY as ROBOT
 
 # The toy (tests/conftest.py) with an absorbing "broken" state reached from a degraded
@@ -138,3 +138,74 @@ def test_property_quotient_equals_storm_on_random_maps_and_policies(size, seed, 
     with QuotientEvaluator(family, workers=1) as quotient, StormEvaluator(family, workers=1) as storm:
         difference = np.abs(quotient.evaluate([policy]) - storm.evaluate([policy])).max()
     assert difference <= 1e-6
+
+
+SYNCHRONISED = """dtmc
+const int c;
+module A
+  a : [0..3] init 0;
+  [go] a<c -> (a'=a+1);
+  [go] a>=c -> (a'=0);
+endmodule
+module B
+  b : [0..3] init 0;
+  [go] b<c -> 0.5 : (b'=b+1) + 0.5 : (b'=b);
+  [go] b>=c -> (b'=b);
+endmodule
+rewards "b"
+  true : b;
+endrewards
+"""
+
+
+def test_a_constant_read_by_synchronising_modules_agrees_with_storm():
+    # a choice of the quotient combines A's copy for one value of c with B's for another:
+    # no policy keeps it, as no policy's DTMC has it
+    system = toy_system(
+        prism=SYNCHRONISED,
+        observation=("a",),
+        objectives=[
+            Objective(name="full", formula="P=? [F b=3]", direction="max"),
+            Objective(name="load", formula='R{"b"}=? [C<=6]', direction="min"),
+        ],
+    )
+    family = augment(system)
+    policies = np.array(list(itertools.product(range(1, 4), repeat=len(family.decisions))))
+    with QuotientEvaluator(family, workers=1) as fast, StormEvaluator(family, workers=1) as storm:
+        assert fast.evaluate(policies) == pytest.approx(storm.evaluate(policies), abs=1e-9)
+
+
+STUCK = """dtmc
+const int c;
+module m
+  x : [0..3] init 0;
+  [a] x<c -> 0.5 : (x'=x+1) + 0.5 : (x'=0);
+  [b] x>c -> (x'=0);
+  [d] x=3 -> true;
+endmodule
+rewards "steps"
+  true : 1;
+endrewards
+"""
+
+
+def test_the_deadlock_label_is_each_policys_own():
+    # at x=c no command is enabled: the policy's DTMC labels that state "deadlock", which
+    # the quotient (where another value of c enables a command there) does not
+    system = toy_system(
+        prism=STUCK,
+        services=[Service(name="probe", constant="c", kind=DecisionKind.FREQUENCY, low=0, high=3)],
+        observation=("x",),
+        objectives=[
+            Objective(name="stuck", formula='P=? [F "deadlock"]', direction="min"),
+            Objective(name="until", formula='R{"steps"}=? [F "deadlock"]', direction="min"),
+            Objective(name="soon", formula='P=? [F<=4 "deadlock"]', direction="min"),
+            Objective(name="mixed", formula='P=? [F ("deadlock" & x=1)]', direction="min"),
+        ],
+        baselines=[],
+    )
+    family = augment(system)
+    policies = np.array(list(itertools.product(range(0, 4), repeat=len(family.decisions))))[::3]
+    with QuotientEvaluator(family, workers=1) as fast, StormEvaluator(family, workers=1) as storm:
+        assert fast.fallback == ("mixed",)  # "deadlock" inside another formula: Storm decides it
+        assert fast.evaluate(policies) == pytest.approx(storm.evaluate(policies), abs=1e-9)

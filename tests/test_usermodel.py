@@ -265,9 +265,9 @@ def test_missing_files_and_existing_output(files):
     [
         ("step : [1..c]", "step : [1..1/0]", "variable step has a bound (1 / 0) that is not a finite integer"),
         ("const int c = 2;", "const int c = 1/0;", "constant c = (1 / 0) is not a finite integer"),
-        ("[wait] step<c & h=1", "[wait] step<c & h=1/0", "Storm crashes (signal 8)"),
+        ("[wait] step<c & h=1", "[wait] step<c & h=1/0", "Storm crashes (SIGFPE)"),
         # only the decision value c=3 divides by zero, and only in states where h=1
-        ("[wait] step<c & h=1 ", "[wait] step<c & h=1 & h!=1/(c-3) ", "Storm crashes (signal 8)"),
+        ("[wait] step<c & h=1 ", "[wait] step<c & h=1 & h!=1/(c-3) ", "Storm crashes (SIGFPE)"),
     ],
 )
 def test_a_division_by_zero_is_an_error_not_a_crash(tmp_path, old, new, message):
@@ -347,3 +347,86 @@ def test_fuzz_no_input_ends_in_a_traceback(tmp_path, position, mutation, decisio
     assert result.exit_code in (0, 2), (model, decision, observe, props, result.stderr, result.exception)
     if result.exit_code == 2:
         assert result.stderr.startswith("error: ") and len(result.stderr.strip().splitlines()) == 1, result.stderr
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (("x : [0..3] init 0;", "x : [0..3];"), None),
+        (("dtmc", "ctmc"), "is a CTMC but parley needs a DTMC"),
+        (("const int c;", "const int c;\nconst int d = c+1;"), None),
+    ],
+)
+def test_misleading_errors_say_what_is_wrong(tmp_path, change, message):
+    """Errors a new user met on other projects' models: each names the real cause."""
+    base = """dtmc
+const int c;
+module m
+ x : [0..3] init 0;
+ [a] x<c -> (x'=x+1);
+ [b] x>=c -> (x'=0);
+endmodule
+rewards "r" true : 1; endrewards
+"""
+    text = base.replace(*change)
+    if change[0].startswith("x :"):
+        text += "init x=0 endinit\n"
+        message = "has an init ... endinit block; parley needs exactly one initial state"
+    if change[1].startswith("const int c;\nconst int d"):
+        text = text.replace("x<c", "x<d").replace("x>=c", "x>=d")
+        message = "uses service constant(s) c (through d) only through other constants"
+    (tmp_path / "m.prism").write_text(text)
+    (tmp_path / "p.pctl").write_text("// name: r, min\nR=? [C<=5]\n")
+    result = invoke(
+        "synthesize",
+        tmp_path / "m.prism",
+        "--props",
+        tmp_path / "p.pctl",
+        "--decision",
+        "c=1..3",
+        "--observe",
+        "x",
+        "--population",
+        "4",
+        "--generations",
+        "1",
+        "--workers",
+        "1",
+        "--out",
+        tmp_path / "out",
+    )
+    _error(result, message)
+
+
+@pytest.mark.parametrize(
+    "formula, message",
+    [
+        ('P<0.1 [ F !"healthy" ]', "a bounded query with a yes/no answer; write it as P=? [...]"),
+        ("R=? [ C<=5 ]", None),
+    ],
+)
+def test_objectives_must_be_queries(tmp_path, formula, message):
+    (tmp_path / "m.prism").write_text(USER)
+    (tmp_path / "p.pctl").write_text(f"// name: o, min\n{formula}\n")
+    result = invoke(
+        "synthesize",
+        tmp_path / "m.prism",
+        "--props",
+        tmp_path / "p.pctl",
+        "--decision",
+        "c=1..3",
+        "--observe",
+        "phase",
+        "--population",
+        "4",
+        "--generations",
+        "1",
+        "--workers",
+        "1",
+        "--out",
+        tmp_path / "out",
+    )
+    if message is None:
+        assert result.exit_code == 0, result.stderr
+    else:
+        _error(result, message)

@@ -46,7 +46,10 @@ def parse_program(text: str, *, origin: str = "model") -> PrismProgram:
             handle.write(text)
         return stormpy.parse_prism_program(path, simplify=False)
     except RuntimeError as exc:
-        raise ModelError(f"{origin} does not parse: {storm_message(exc)}") from None
+        message = storm_message(exc)
+        if "The input model is a CTMC" in message:  # Storm's parser refuses before parley can say it
+            raise ModelError(f"{origin} is a CTMC but parley needs a DTMC; declare it with `dtmc`") from None
+        raise ModelError(f"{origin} does not parse: {message}") from None
     finally:
         os.unlink(path)
 
@@ -77,6 +80,13 @@ def check_property_references(prop, program: PrismProgram, *, origin: str, ignor
     when the program has several (labels are checked by Storm when building). ``ignore``:
     reward structures of parley's own, which the user's properties cannot mean."""
     formula = prop.get_raw_formula()
+    if not (formula.is_probability_operator_formula or formula.is_reward_operator_formula):
+        raise ModelError(f"{origin} is {formula}, not a P=? or R=? query; objectives are P=? [...] or R=? [...]")
+    if formula.has_bound:
+        raise ModelError(
+            f"{origin} is {formula}, a bounded query with a yes/no answer; write it as P=? [...] (or R=? [...]) "
+            "and give the bound as a requirement, --constraint NAME<=BOUND"
+        )
     if formula.is_reward_operator_formula:
         structures = reward_structures(program, ignore)
         if formula.has_reward_model_name():

@@ -43,6 +43,10 @@ class KernelObjective:
     right: np.ndarray | None = field(default=None, eq=False)
     steps: int = 0
     reward: int = -1
+    right_deadlock: bool = False
+    """``right`` is the label "deadlock": the quotient's own deadlocks (``right``) and the
+    states of a policy's DTMC without a consistent choice, which depend on the policy (the
+    solver adds them from its exploration)."""
 
 
 def reward_names(mdp: QuotientMDP) -> list[str]:
@@ -92,24 +96,51 @@ def states(model, formula) -> np.ndarray | None:
     return mask
 
 
+DEADLOCK = "deadlock"
+"""Storm's built-in label of the states without an enabled command."""
+
+
+def uses_deadlock(formula) -> bool:
+    """Whether a state formula mentions the label "deadlock" (found by renaming it)."""
+    return str(formula.substitute_labels_by_labels({DEADLOCK: "__parley_probe"})) != str(formula)
+
+
+def is_deadlock(formula) -> bool:
+    """Whether a state formula is the label "deadlock" itself."""
+    return isinstance(formula, stormpy.logic.AtomicLabelFormula) and str(formula) == f'"{DEADLOCK}"'
+
+
 def compile_objective(mdp: QuotientMDP, prop, names: list[str]) -> KernelObjective | None:
-    """The kernel form of a property, or None if the quotient evaluator does not support it."""
+    """The kernel form of a property, or None if the quotient evaluator does not support it.
+
+    Storm's "deadlock" label depends on the policy (a decision value may leave a state with
+    no enabled command), so the quotient cannot decide it once for all: a target that is
+    exactly "deadlock" is taken from each policy's exploration, and any other use of the
+    label leaves the objective to Storm."""
     found = shape(prop, mdp.program, (OBSERVATION_REWARD,))
     model = mdp.model
+    for part in (found.left, found.right):
+        if part is not None and uses_deadlock(part) and not (part is found.right and is_deadlock(part)):
+            return None
+    dynamic = found.right is not None and is_deadlock(found.right)
     if found.kind in (Shape.UNTIL, Shape.BOUNDED_UNTIL):
         left = np.ones(model.nr_states, bool) if found.left is None else states(model, found.left)
         right = states(model, found.right)
         if left is None or right is None:
             return None
         if found.kind is Shape.UNTIL:
-            return KernelObjective(kind=KernelKind.UNTIL, left=left, right=right)
-        return KernelObjective(kind=KernelKind.BOUNDED, left=left, right=right, steps=found.steps or 0)
+            return KernelObjective(kind=KernelKind.UNTIL, left=left, right=right, right_deadlock=dynamic)
+        return KernelObjective(
+            kind=KernelKind.BOUNDED, left=left, right=right, steps=found.steps or 0, right_deadlock=dynamic
+        )
     if found.kind is Shape.OTHER or found.reward is None:
         return None
     reward = names.index(found.reward)
     if found.kind is Shape.REACH_REWARD:
         right = states(model, found.right)
-        return None if right is None else KernelObjective(kind=KernelKind.REACH_REWARD, right=right, reward=reward)
+        if right is None:
+            return None
+        return KernelObjective(kind=KernelKind.REACH_REWARD, right=right, reward=reward, right_deadlock=dynamic)
     if found.kind is Shape.CUMULATIVE:
         return KernelObjective(kind=KernelKind.CUMULATIVE, steps=found.steps or 0, reward=reward)
     return KernelObjective(kind=KernelKind.TOTAL, reward=reward)

@@ -44,6 +44,7 @@ def explore(
     rewards_out,
     levels,
     chosen,
+    stuck,
 ):
     """The reachable DTMC of ``policy``; returns (states, entries).
 
@@ -51,7 +52,8 @@ def explore(
     [r, :states] receives each reward structure's state reward plus the mean action reward
     of the consistent choices (nothing in a state without one: Storm drops a deadlock state's
     rewards); ``levels`` each state's distance (in steps) from the initial one. ``chosen`` is
-    work space for the consistent choices of one state (as long as the most choices a state has).
+    work space for the consistent choices of one state (as long as the most choices a state has);
+    ``stuck`` marks the states without one, which Storm's DTMC of the policy labels "deadlock".
     """
     n_rewards = state_rewards.shape[0]
     order[0] = initial
@@ -71,6 +73,7 @@ def explore(
         for r in range(n_rewards):
             # Storm gives a deadlock state (made a self-loop) no reward, state rewards included
             rewards_out[r, head] = state_rewards[r, s] if k > 0 else 0.0
+        stuck[head] = k == 0
         if k == 0:
             cols[nnz] = head
             vals[nnz] = 1.0

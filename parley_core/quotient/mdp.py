@@ -88,14 +88,18 @@ def build_mdp(system: SystemModel, formulas: Sequence[str] = (), objective_names
     identifiers = arrays["actions/choices/values.bin"].astype(np.int64)
     unique, first = np.unique(identifiers, return_index=True)
     origins = model.choice_origins
-    width = len(system.services)  # a choice carries at most one value per service
+    # A choice may come from synchronising commands of several modules that read the same
+    # constant: each copy carries its value, so one choice can hold a service twice. With
+    # the same value that is one pair; with two values no policy keeps the choice (both
+    # pairs must match the policy's decision), which is what Storm builds too.
+    pairs_of = {
+        int(identifier): sorted({tag for index in origins.get_command_set(int(choice)) for tag in tags.get(index, ())})
+        for identifier, choice in zip(unique, first)
+    }
+    width = max([len(system.services), *(len(p) for p in pairs_of.values())])
     id_service = np.full((int(unique.max()) + 1, width), -1, dtype=np.int64)
     id_value = np.zeros_like(id_service)
-    for identifier, choice in zip(unique, first):
-        pairs = sorted({tag for index in origins.get_command_set(int(choice)) for tag in tags.get(index, ())})
-        services = [s for s, _ in pairs]
-        if len(set(services)) != len(services):
-            raise RuntimeError("a choice combines two values of one service")
+    for identifier, pairs in pairs_of.items():
         for j, (service, value) in enumerate(pairs):
             id_service[identifier, j] = service
             id_value[identifier, j] = value

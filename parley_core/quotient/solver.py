@@ -47,6 +47,7 @@ class QuotientSolver:
         self.rewards = np.empty((quotient.state_rewards.shape[0], n))
         self.levels = np.empty(n, dtype=np.int64)
         self.chosen = np.empty(max(1, int(np.diff(quotient.state_choices).max(initial=0))), dtype=np.int64)
+        self.stuck = np.zeros(n, dtype=np.bool_)
         self.last_states = 0
         self.direct_solves = 0
         """Solves the sweeps could not certify, done again by a direct solve."""
@@ -80,6 +81,7 @@ class QuotientSolver:
             self.rewards,
             self.levels,
             self.chosen,
+            self.stuck,
         )
         self.last_states = count
         indptr, cols, vals = self.indptr[: count + 1], self.cols[:nnz], self.vals[:nnz]
@@ -96,7 +98,7 @@ class QuotientSolver:
 
     def _objective(self, objective, count, indptr, cols, vals, order) -> float:
         if objective.kind is KernelKind.UNTIL:
-            left, right = objective.left[order], objective.right[order]
+            left, right = objective.left[order], self._right(objective, order, count)
             # Iterating from 0, a state that cannot reach a right state keeps exactly 0 (the
             # value Storm's prob0 analysis gives it). One cheap pass finds most of them and
             # leaves them out of the sweeps; the certificate and the direct solve need all.
@@ -105,7 +107,7 @@ class QuotientSolver:
             x = np.where(right, 1.0, 0.0)
             return self._solve(count, indptr, cols, vals, free, x, np.zeros(count), can & ~right)
         if objective.kind is KernelKind.BOUNDED:
-            left, right = objective.left[order], objective.right[order]
+            left, right = objective.left[order], self._right(objective, order, count)
             x = np.where(right, 1.0, 0.0)
             x = kernels.bounded(
                 count, indptr, cols, vals, objective.steps, x, np.zeros(count), left & ~right, self.levels
@@ -113,7 +115,7 @@ class QuotientSolver:
             return float(x[0])
         reward = self.rewards[objective.reward, :count].copy()
         if objective.kind is KernelKind.REACH_REWARD:
-            right = objective.right[order]
+            right = self._right(objective, order, count)
             can = kernels.backward_reach(count, indptr, cols, right, np.ones(count, bool))
             # infinite where a state that cannot reach the target is reachable (avoiding it)
             infinite = kernels.backward_reach(count, indptr, cols, ~can, ~right)
@@ -140,6 +142,12 @@ class QuotientSolver:
             constant = np.where(free, reward, 0.0)
             return self._solve(count, indptr, cols, vals, free, np.zeros(count), constant, free)
         raise ValueError(objective.kind)
+
+    def _right(self, objective, order, count) -> np.ndarray:
+        """The objective's target states, local: the policy's own deadlocks for "deadlock"."""
+        if objective.right_deadlock:
+            return objective.right[order] | self.stuck[:count]
+        return objective.right[order]
 
     def _solve(self, count, indptr, cols, vals, free, x, constant, exact) -> float:
         """x[0] for x = constant + P x on the ``free`` states, certified: Gauss-Seidel sweeps
