@@ -83,6 +83,13 @@ def spread(result: RunResult, valued: Valued) -> float | None:
     return metrics.spread(values[metrics.nondominated(values, directions)], directions)
 
 
+def infinite_counts(result: RunResult) -> dict[str, int]:
+    """Per objective, how many evaluated policies have an infinite value (kept off the front)."""
+    values = np.asarray(result.search.values, dtype=float).reshape(-1, len(result.family.objectives))
+    counts = (~np.isfinite(values)).sum(axis=0)
+    return {o.name: int(n) for o, n in zip(result.family.objectives, counts) if n}
+
+
 def summary(result: RunResult) -> dict[str, Any]:
     family = result.family
     search = result.search
@@ -119,6 +126,7 @@ def summary(result: RunResult) -> dict[str, Any]:
         },
         "objectives": [o.to_json() for o in family.objectives],
         "constraints": [str(c) for c in result.settings.constraints],
+        "infinite_values": infinite_counts(result),
         "front": {"size": len(result.front), "hypervolume": hv_front, "spread": spread(result, result.front)},
         "baseline": {"size": len(result.baseline), "hypervolume": hv_base, "spread": spread(result, result.baseline)},
         "hypervolume_reference": list(result.reference),

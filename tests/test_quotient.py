@@ -79,7 +79,7 @@ def test_the_direct_solve_after_the_sweep_limit_agrees_with_storm(monkeypatch):
     # where states that cannot reach the target must be left out of I - P
     from parley_core.quotient import solver as module
 
-    monkeypatch.setattr(module, "MAX_SWEEPS", 1)
+    monkeypatch.setattr(module, "SLOW_SWEEPS", 1)
     kinds = ("reach", "until", "reward_reach", "total_finite")
     degraded = "P=? [F h=0 & !broken]"  # the broken states (reached after it) never reach it
     family = augment(breaking_system({"degraded": degraded, **{k: OBJECTIVES[k] for k in kinds}}))

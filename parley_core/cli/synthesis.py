@@ -153,6 +153,11 @@ def _synthesize(prepare_with, settings, out: Path, force: bool, evaluator: str, 
         f"({result.timings.get('search', 0):.1f} s, stopped by {search.stopped_by.value}); "
         f"selected {info['selected']['policy']} (knee)"
     )
+    for name, count in info["infinite_values"].items():
+        console.print(
+            f"{count} of {search.evaluations} evaluated policies have an infinite {name} "
+            "(the goal may never be reached); none is on the front unless all are"
+        )
     verification = result.verification
     if verification.by is Verified.STORM_RECHECK:
         console.print(

@@ -366,63 +366,18 @@ def cumulative(count, indptr, cols, vals, steps, rewards, levels):
 
 
 @njit(cache=True)
-def certify(indptr, cols, vals, rows, x, constant, max_sweeps):
-    """A bound on |x*[0] - x[0]| for the solution x* of x = constant + P x on ``rows`` (the
-    other states fixed at their x), where (I - P) restricted to ``rows`` is invertible.
+def residual(indptr, cols, vals, rows, x, constant):
+    """max over ``rows`` of |constant + P x - x|: how far x is from solving x = constant + P x.
 
-    With N = (I - P)^-1 >= 0, x* - x = N r for the residual r = constant + P x - x, so
-    |x* - x| <= max|r| N 1. N 1 is bounded by a rough solution h of h = 1 + P h: when its own
-    residual is at most 1 - c (c > 0), (I - P) h >= c, so N 1 <= h / c. h is found by
-    Gauss-Seidel sweeps from 0 until c >= 1/2; without that within ``max_sweeps`` (a very
-    slowly mixing chain) the bound is infinite. Exact arithmetic aside (the residuals are
-    computed in floating point), the bound is sound for any x.
-    """
-    n = rows.shape[0]
-    count = indptr.shape[0] - 1
-    inside = np.zeros(count, dtype=np.bool_)
-    for i in range(n):
-        inside[rows[i]] = True
-    if not inside[0]:
-        return 0.0
-    residual = 0.0
-    for i in range(n):
+    With N = (I - P)^-1 >= 0 on the rows, x* - x = N r, so |x* - x| <= max|r| N 1: this and
+    a bound on N 1 (``QuotientSolver._amplification``) certify an approximate solution, whatever
+    produced it (exact arithmetic aside: the residual is computed in floating point)."""
+    worst = 0.0
+    for i in range(rows.shape[0]):
         s = rows[i]
         total = constant[s] - x[s]
         for e in range(indptr[s], indptr[s + 1]):
             total += vals[e] * x[cols[e]]
-        if abs(total) > residual:
-            residual = abs(total)
-    if residual == 0.0:
-        return 0.0
-    h = np.zeros(count)
-    scale = np.zeros(n)
-    for i in range(n):
-        s = rows[i]
-        loop = 0.0
-        for e in range(indptr[s], indptr[s + 1]):
-            if cols[e] == s:
-                loop += vals[e]
-        if loop < 1.0:
-            scale[i] = 1.0 / (1.0 - loop)
-    for _sweep in range(max_sweeps):
-        for i in range(n):
-            s = rows[i]
-            total = 1.0
-            for e in range(indptr[s], indptr[s + 1]):
-                t = cols[e]
-                if t != s and inside[t]:
-                    total += vals[e] * h[t]
-            h[s] = total * scale[i]
-        worst = 0.0  # the largest residual of h: 1 + P h - h on the rows
-        for i in range(n):
-            s = rows[i]
-            total = 1.0 - h[s]
-            for e in range(indptr[s], indptr[s + 1]):
-                t = cols[e]
-                if inside[t]:
-                    total += vals[e] * h[t]
-            if total > worst:
-                worst = total
-        if worst <= 0.5:
-            return residual * h[0] / (1.0 - worst)
-    return np.inf
+        if abs(total) > worst:
+            worst = abs(total)
+    return worst
