@@ -11,7 +11,7 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from attrs import field, frozen
@@ -27,6 +27,9 @@ from parley_core.model import Family, Front, Policy, SystemModel, Valued
 from parley_core.progress import NullReporter, Reporter
 from parley_core.search import SearchResult, SearchSettings, search
 from parley_core.verify import Verification, by_search, check_with_storm, not_checked
+
+if TYPE_CHECKING:
+    from parley_core.bound import Bound
 
 
 @frozen(kw_only=True)
@@ -111,6 +114,8 @@ class RunResult:
     selected: int
     timings: dict[str, float]
     evaluator_info: dict[str, Any] = field(factory=dict)
+    bound: Bound | None = None
+    """A certified outer bound of the family (None: not asked for, or not available)."""
 
     @property
     def family(self) -> Family:
@@ -125,8 +130,12 @@ def run(
     workers: int | None = None,
     reporter: Reporter | None = None,
     verify: bool = True,
+    bound: str = "ideal",
 ) -> RunResult:
-    """Baselines, search, verification; returns everything the report needs.
+    """Baselines, search, verification, bound; returns everything the report needs.
+
+    ``bound``: "ideal" (default) computes the ideal point over the quotient's relaxation,
+    a certified outer bound of the family (:mod:`parley_core.bound`); "none" skips it.
 
     ``verify=False`` skips re-checking the front with Storm when another evaluator searched
     (campaigns may choose it for time); the result then says so (``verification.by``).
@@ -208,6 +217,15 @@ def run(
         policies=[Policy(name=f"p{i + 1:0{width}d}", values=candidates[j]) for i, j in enumerate(order)],
         values=values[order],
     )
+    found = None
+    if bound != "none":
+        with _timed(timings, "bound"):
+            reporter.stage("bound")
+            from parley_core.bound import ideal_point
+            from parley_core.quotient.coloring import build_quotient
+
+            quotient = getattr(engine, "quotient", None) or build_quotient(family)
+            found = ideal_point(family, quotient)
     reference = metrics.reference_point(family.objectives, np.array(front.values), np.array(baseline.values))
     describe = getattr(engine, "describe", None)
     return RunResult(
@@ -223,6 +241,7 @@ def run(
         reference=tuple(float(r) for r in reference),
         selected=metrics.knee(np.array(front.values), directions),
         timings=timings,
+        bound=found,
     )
 
 

@@ -83,6 +83,35 @@ def spread(result: RunResult, valued: Valued) -> float | None:
     return metrics.spread(values[metrics.nondominated(values, directions)], directions)
 
 
+def optimality(result: RunResult, front_hypervolume: float) -> dict[str, Any] | None:
+    """How much of the certified bound's hypervolume the front covers (same reference point)."""
+    bound = result.bound
+    if bound is None:
+        return None
+    bound_hv = bound.hypervolume(result.reference)
+    gap = (bound_hv - front_hypervolume) / bound_hv if bound_hv > 0 and np.isfinite(bound_hv) else None
+    return {
+        "bound_hypervolume": bound_hv,
+        "front_hypervolume": front_hypervolume,
+        "gap": gap,
+        "bound_method": bound.method,
+        "exact": bound.exact,
+        "bound_points": len(bound.points),
+        "seconds": round(bound.seconds, 4),
+    }
+
+
+def bound_csv(result: RunResult) -> str:
+    """The bound's points, one column per objective."""
+    assert result.bound is not None
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow([o.name for o in result.family.objectives])
+    for row in result.bound.points:
+        writer.writerow([repr(float(v)) for v in row])
+    return out.getvalue()
+
+
 def infinite_counts(result: RunResult) -> dict[str, int]:
     """Per objective, how many evaluated policies have an infinite value (kept off the front)."""
     values = np.asarray(result.search.values, dtype=float).reshape(-1, len(result.family.objectives))
@@ -126,6 +155,7 @@ def summary(result: RunResult) -> dict[str, Any]:
         },
         "objectives": [o.to_json() for o in family.objectives],
         "constraints": [str(c) for c in result.settings.constraints],
+        "optimality": optimality(result, hv_front),
         "infinite_values": infinite_counts(result),
         "front": {"size": len(result.front), "hypervolume": hv_front, "spread": spread(result, result.front)},
         "baseline": {"size": len(result.baseline), "hypervolume": hv_base, "spread": spread(result, result.baseline)},
@@ -166,6 +196,14 @@ def plot_front(result: RunResult, path: Path) -> None:
             color="tab:blue",
             label=f"selected {result.front.policies[result.selected].name} (knee)",
         )
+        if result.bound is not None and np.isfinite(result.bound.points).all():
+            points = np.asarray(result.bound.points)
+            ax.scatter(
+                points[:, i], points[:, j], marker="*", s=120, color="tab:green", label="bound (no policy beyond)"
+            )
+            for point in points:  # the region the bound leaves open: what it dominates
+                ax.axvline(point[i], color="tab:green", lw=0.6, ls="--")
+                ax.axhline(point[j], color="tab:green", lw=0.6, ls="--")
         for policy, row in zip(result.baseline.policies, base):
             ax.annotate(
                 policy.name.split("-")[-1],
@@ -211,6 +249,8 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path
         baseline_columns = {c: [b.values[c] for b in family.baselines] for c in constants}
         (staging / "baseline.csv").write_text(front_csv(result.baseline, baseline_columns))
         (staging / "summary.json").write_text(json.dumps(summary(result), indent=2) + "\n")
+        if result.bound is not None:
+            (staging / "bound.csv").write_text(bound_csv(result))
         plot_front(result, staging / "front.png")
         case = result.prepared.case
         if case.plot_policy is not None:

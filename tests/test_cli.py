@@ -90,6 +90,7 @@ def test_run_writes_the_run_directory_and_is_reproducible(tmp_path):
         "policies.csv",
         "decisions.csv",
         "baseline.csv",
+        "bound.csv",
         "summary.json",
         "front.png",
         "policy.png",

@@ -74,4 +74,12 @@ MaxEvaluationsOption = Annotated[
 TimeLimitOption = Annotated[
     float | None, typer.Option("--time-limit", min=0.001, help="Stop the search after this many seconds.")
 ]
+BoundOption = Annotated[
+    str,
+    typer.Option(
+        "--bound",
+        help="ideal: a certified outer bound of the family (the best per objective over all schedulers of the "
+        "quotient's relaxation) and the front's gap to it; none: skip it.",
+    ),
+]
 OutOption = Annotated[Path | None, typer.Option(help="Run directory (default: runs/NAME-TIMESTAMP).")]

@@ -16,6 +16,7 @@ from parley_core.cli.console import RichReporter, fmt, front_table, stderr
 from parley_core.cli.options import (
     POPULATION,
     SEED,
+    BoundOption,
     CaseArgument,
     ConstraintOption,
     DecisionOption,
@@ -51,6 +52,7 @@ def run_command(
     evaluator: EvaluatorOption = EvaluatorKind.QUOTIENT.value,
     constraint: ConstraintOption = None,
     workers: WorkersOption = None,
+    bound: BoundOption = "ideal",
 ) -> None:
     """Synthesize a URC: search for Pareto-optimal policies, verify them with Storm, write a run directory."""
     settings = search_settings(
@@ -62,7 +64,7 @@ def run_command(
         constraint=constraint,
     )
     out = out or Path("runs") / f"{case}-{time.strftime('%Y%m%d-%H%M%S')}"
-    _synthesize(lambda reporter: prepare_case(case, set_, reporter), settings, out, force, evaluator, workers)
+    _synthesize(lambda reporter: prepare_case(case, set_, reporter), settings, out, force, evaluator, workers, bound)
 
 
 @app.command("synthesize")
@@ -93,6 +95,7 @@ def synthesize_command(
     force: ForceOption = False,
     evaluator: EvaluatorOption = EvaluatorKind.QUOTIENT.value,
     workers: WorkersOption = None,
+    bound: BoundOption = "ideal",
 ) -> None:
     """Synthesize a URC for your own PRISM model: the same pipeline and run directory as `parley run`."""
     from parley_core.pipeline import prepare
@@ -112,21 +115,25 @@ def synthesize_command(
         constraint=constraint,
     )
     out = out or Path("runs") / f"{model.stem}-{time.strftime('%Y%m%d-%H%M%S')}"
-    _synthesize(prepare_with, settings, out, force, evaluator, workers)
+    _synthesize(prepare_with, settings, out, force, evaluator, workers, bound)
 
 
-def _synthesize(prepare_with, settings, out: Path, force: bool, evaluator: str, workers: int | None) -> None:
+def _synthesize(
+    prepare_with, settings, out: Path, force: bool, evaluator: str, workers: int | None, bound: str = "ideal"
+) -> None:
     """Prepare, search, verify, write and print a run (shared by `run` and `synthesize`)."""
     from parley_core.pipeline import run
     from parley_core.report import PLOT_ERROR, check_output, summary, write_run
     from parley_core.verify import TOLERANCE, Verified
 
     kind = EvaluatorKind.of(evaluator)
+    if bound not in ("ideal", "none"):
+        raise OptionError(f"unknown --bound {bound!r}; valid: ideal, none")
     console = Console()
     check_output(out, force)
     with RichReporter(stderr()) as reporter:
         prepared = prepare_with(reporter)
-        result = run(prepared, settings, evaluator=kind, workers=workers, reporter=reporter)
+        result = run(prepared, settings, evaluator=kind, workers=workers, reporter=reporter, bound=bound)
         reporter.stage("write report")
         written = write_run(result, out, force=force)
     if out / PLOT_ERROR in written:
@@ -141,12 +148,24 @@ def _synthesize(prepare_with, settings, out: Path, force: bool, evaluator: str, 
         front_table("Baseline", result.baseline, {c: [b.values[c] for b in family.baselines] for c in constants})
     )
     gain = info["hypervolume_gain_percent"]
+    optimality = info["optimality"]
     reference = ", ".join(f"{o.name}={fmt(r)}" for o, r in zip(family.objectives, result.reference))
     console.print(
         f"hypervolume: front {fmt(info['front']['hypervolume'])}, baseline {fmt(info['baseline']['hypervolume'])}"
         + (f" (gain {gain:+.1f}%)" if gain is not None else "")
         + f"; reference point {reference}"
     )
+    if optimality is not None:
+        gap = optimality["gap"]
+        console.print(
+            "optimality: "
+            + (
+                f"the front covers {100 * (1 - gap):.1f}% of the bound's hypervolume (gap {100 * gap:.1f}%)"
+                if gap is not None
+                else "no finite bound"
+            )
+            + f"; bound: {optimality['bound_method'].split(':')[0]} (bound.csv)"
+        )
     search = result.search
     console.print(
         f"{search.evaluations} policies evaluated in {search.generations} generations "

@@ -1,0 +1,149 @@
+"""How good is a front: a certified outer bound on what any policy of the family reaches.
+
+The bound is a set of points B such that every policy of the family is weakly dominated by
+some point of B. This module computes the cheap one, the *ideal point*: per objective, the
+best value over all schedulers of the quotient's relaxation (:mod:`parley_core.quotient.relaxation`),
+whose schedulers include every policy's DTMC, solved by Storm with sound value iteration and
+widened by its precision. The run reports how much of the bound's hypervolume its front
+covers (the gap).
+
+An objective the relaxation cannot express (a state formula that mentions "deadlock" other
+than as an eventual target, or one the quotient evaluator leaves to Storm) gets the trivial
+bound: the best value its kind can have (1 or 0 for a probability, 0 or infinity for a
+reward).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import numpy as np
+from attrs import field, frozen
+
+from parley_core import metrics
+from parley_core.model import Direction, Family, Objective
+from parley_core.quotient.coloring import Quotient
+from parley_core.quotient.compile import KernelKind, KernelObjective
+from parley_core.quotient.relaxation import relax, storm_model
+
+PRECISION = 1e-9
+"""Sound value iteration's precision on the relaxation: absolute for probabilities, relative
+to the largest state value for rewards; the bound is widened by it."""
+
+
+@frozen(kw_only=True)
+class Bound:
+    """Points (rows, in the objectives' own units) that weakly dominate every policy of the family."""
+
+    objectives: tuple[Objective, ...] = field(converter=tuple[Objective, ...])
+    points: np.ndarray = field(eq=False)
+    method: str
+    exact: bool = False
+    seconds: float = 0.0
+
+    def dominates(self, values: np.ndarray, tolerance: float = 1e-9) -> np.ndarray:
+        """Which rows of ``values`` some point of the bound weakly dominates (to ``tolerance``
+        of the value's size, at least 1)."""
+        signs = np.array([o.direction.sign for o in self.objectives])
+        points = np.asarray(self.points, dtype=float) * signs
+        rows = np.asarray(values, dtype=float).reshape(-1, len(self.objectives)) * signs
+        slack = tolerance * np.maximum(1.0, np.abs(np.where(np.isfinite(rows), rows, 0.0)))
+        with np.errstate(invalid="ignore"):
+            return ((points[None, :, :] <= rows[:, None, :] + slack[:, None, :]).all(axis=2)).any(axis=1)
+
+    def hypervolume(self, reference: Sequence[float]) -> float:
+        directions = [o.direction for o in self.objectives]
+        if not np.isfinite(self.points).all():
+            return float("inf")
+        return metrics.hypervolume(np.asarray(self.points, dtype=float), directions, reference)
+
+
+def _trivial(objective: Objective, kernel: KernelObjective | None) -> float:
+    probability = kernel is not None and kernel.kind in (KernelKind.UNTIL, KernelKind.BOUNDED)
+    if probability or (kernel is None and objective.formula.lstrip().startswith("P")):
+        return 1.0 if objective.direction is Direction.MAX else 0.0
+    return float("inf") if objective.direction is Direction.MAX else 0.0
+
+
+def _label(mask: np.ndarray | None, name: str, default: str) -> str:
+    """A state formula for a mask: its label, or ``true``/``false`` when it holds everywhere
+    or nowhere (a label on no state does not exist in Storm's explicit format)."""
+    if mask is None:
+        return default
+    if bool(np.all(mask)):
+        return "true"
+    if not bool(np.any(mask)):
+        return "false"
+    return f'"{name}"'
+
+
+def _query(index: int, objective: Objective, kernel: KernelObjective) -> str | None:
+    """The single-objective query on the relaxation (labels phi_i, psi_i; rewards r0, r1, ...)."""
+    best = "max" if objective.direction is Direction.MAX else "min"
+    left = _label(kernel.left, f"phi{index}", "true")
+    right = f'"psi{index}"' if kernel.right_deadlock else _label(kernel.right, f"psi{index}", "false")
+    if kernel.kind is KernelKind.UNTIL:
+        if kernel.right_deadlock and left != "true":
+            return None
+        return f"P{best}=? [{left} U {right}]"
+    if kernel.kind is KernelKind.BOUNDED:
+        return None if kernel.right_deadlock else f"P{best}=? [{left} U<={kernel.steps} {right}]"
+    reward = f'R{{"r{kernel.reward}"}}{best}=?'
+    if kernel.kind is KernelKind.REACH_REWARD:
+        return f"{reward} [F {right}]"
+    if kernel.kind is KernelKind.CUMULATIVE:
+        return f"{reward} [C<={kernel.steps}]"
+    return f"{reward} [C]"
+
+
+def _solve(model, text: str) -> tuple[float, float]:
+    import stormpy
+    import stormpy.developer as storm_dev
+
+    (prop,) = stormpy.parse_properties(text)
+    initial = model.initial_states[0]
+    estimate = np.asarray(stormpy.model_checking(model, prop).get_value_vector(), dtype=float)
+    finite = estimate[np.isfinite(estimate)]
+    scale = max(1.0, float(np.abs(finite).max())) if len(finite) else 1.0
+    environment = stormpy.Environment()
+    minmax = environment.solver().min_max()
+    minmax.method = storm_dev.MinMaxMethod.SOUND_VALUE_ITERATION
+    minmax.precision = stormpy.Rational(PRECISION * scale)
+    minmax.relative_termination_criterion = False
+    value = float(stormpy.model_checking(model, prop, environment=environment).get_value(initial))
+    return value, PRECISION * scale
+
+
+def ideal_point(family: Family, quotient: Quotient) -> Bound:
+    """The ideal point over all schedulers of the quotient's relaxation: a sound bound."""
+    start = time.perf_counter()
+    relaxation = relax(quotient, family)
+    sink = np.zeros(relaxation.states, dtype=bool)
+    sink[relaxation.sink] = True
+    labels: dict[str, np.ndarray] = {}
+    queries: list[str | None] = []
+    for i, (objective, kernel) in enumerate(zip(family.objectives, quotient.objectives)):
+        query = None if kernel is None else _query(i, objective, kernel)
+        queries.append(query)
+        if query is None or kernel is None:
+            continue
+        if kernel.left is not None:
+            labels[f"phi{i}"] = np.append(kernel.left, False)
+        if kernel.right is not None:
+            # a policy's own deadlocks are the relaxation's moves to the sink
+            labels[f"psi{i}"] = np.append(kernel.right, bool(kernel.right_deadlock))
+    model = storm_model(relaxation, labels)
+    point = []
+    for objective, kernel, query in zip(family.objectives, quotient.objectives, queries):
+        if query is None:
+            point.append(_trivial(objective, kernel))
+            continue
+        value, precision = _solve(model, query)
+        point.append(value + precision * (1.0 if objective.direction is Direction.MAX else -1.0))
+    return Bound(
+        objectives=family.objectives,
+        points=np.array([point]),
+        method="ideal point: per objective the best over all schedulers of the quotient's relaxation (Storm)",
+        seconds=time.perf_counter() - start,
+    )

@@ -1,0 +1,112 @@
+"""The certified bound is sound: every policy Storm evaluates, and every front, is weakly
+dominated by a point of the bound, on the case studies, the tutorial's model and models
+with overlapping guards, synchronised decisions and per-policy deadlocks."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import attrs
+import numpy as np
+import pytest
+from conftest import toy_system
+from test_quotient import OBJECTIVES, STUCK, SYNCHRONISED, breaking_system
+from typer.testing import CliRunner
+
+from parley_core.bound import ideal_point
+from parley_core.cli import app
+from parley_core.model import DecisionKind, Direction, Objective, Service
+from parley_core.quotient.coloring import build_quotient
+from parley_core.testing import family, values
+from parley_core.usermodel import system_from_file
+
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+
+
+def _flip(objectives, maximize):
+    return [attrs.evolve(o, direction=Direction.MAX) if o.name in maximize else o for o in objectives]
+
+
+def _families():
+    yield "robot_grid 5x5", family("robot_grid", ["size=5", "seed=1", "max_interval=4", "horizon=45"])
+    yield "web_ids", family("web_ids", ["rounds=6"])
+    yield "tas", family("tas", ["rounds=6", "max_interval=3"])
+    pump = system_from_file(DOCS / "tutorial" / "pump.prism", ["c=1..8"], ["est,load"], DOCS / "tutorial" / "pump.pctl")
+    yield "pump", family(pump, prune=True)
+    # overlapping enabled commands (mixed uniformly), every objective shape, both directions
+    breaking = breaking_system(OBJECTIVES)
+    yield "breaking (min)", family(breaking)
+    yield "breaking (max)", family(attrs.evolve(breaking, objectives=_flip(breaking.objectives, set(OBJECTIVES))))
+    yield (
+        "synchronised",
+        family(
+            toy_system(
+                prism=SYNCHRONISED,
+                observation=("a",),
+                objectives=[
+                    Objective(name="full", formula="P=? [F b=3]", direction="max"),
+                    Objective(name="load", formula='R{"b"}=? [C<=6]', direction="min"),
+                ],
+            )
+        ),
+    )
+    yield (
+        "stuck",
+        family(
+            toy_system(
+                prism=STUCK,
+                services=[Service(name="probe", constant="c", kind=DecisionKind.FREQUENCY, low=0, high=3)],
+                observation=("x",),
+                objectives=[
+                    Objective(name="stuck", formula='P=? [F "deadlock"]', direction="max"),
+                    Objective(name="until", formula='R{"steps"}=? [F "deadlock"]', direction="min"),
+                    Objective(name="soon", formula='P=? [F<=4 "deadlock"]', direction="max"),
+                    Objective(name="escape", formula="P=? [F x=3]", direction="max"),
+                ],
+                baselines=[],
+            )
+        ),
+    )
+
+
+@pytest.mark.parametrize("name, case", list(_families()), ids=lambda v: v if isinstance(v, str) else "")
+def test_every_policy_is_dominated_by_the_bound(name, case):
+    bound = ideal_point(case, build_quotient(case))
+    policies = np.vstack(
+        [np.array([p.values for p in case.baseline_policies()]).reshape(-1, len(case.decisions)),
+         case.random(np.random.default_rng(11), 40)]
+    ).astype(np.int64)  # fmt: skip
+    storm = values(case, policies)
+    dominated = bound.dominates(storm)
+    assert dominated.all(), f"{name}: {storm[~dominated][:3]} beyond the bound {bound.points}"
+
+
+def test_a_bound_that_is_wrong_is_caught():
+    # the check itself can fail: a bound moved inside the values is not a bound
+    case = family("tas", ["rounds=6", "max_interval=3"])
+    bound = ideal_point(case, build_quotient(case))
+    storm = values(case, case.baseline_policies())
+    moved = attrs.evolve(bound, points=np.array([storm.mean(axis=0)]))
+    assert not moved.dominates(storm).all()
+
+
+def test_every_run_writes_its_bound_and_the_front_is_inside_it(tmp_path):
+    out = tmp_path / "run"
+    quick = ["--set", "size=5", "--set", "seed=1", "--set", "max_interval=4", "--set", "horizon=45"]
+    result = CliRunner().invoke(app, ["run", "robot_grid", *quick, "--population", "10", "--generations", "3",
+                                      "--workers", "1", "--out", str(out)])  # fmt: skip
+    assert result.exit_code == 0, result.stderr
+    optimality = json.loads((out / "summary.json").read_text())["optimality"]
+    assert 0 <= optimality["gap"] < 1 and optimality["bound_hypervolume"] >= optimality["front_hypervolume"]
+    assert "optimality: the front covers" in result.stdout
+    with open(out / "bound.csv") as handle:
+        points = np.array([[float(v) for v in row.values()] for row in csv.DictReader(handle)])
+    with open(out / "front.csv") as handle:
+        front = np.array([[float(row["success"]), float(row["cost"])] for row in csv.DictReader(handle)])
+    assert (
+        ((points[:, None, 0] >= front[None, :, 0] - 1e-9) & (points[:, None, 1] <= front[None, :, 1] + 1e-9))
+        .any(axis=0)
+        .all()
+    )
