@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from attrs import field, frozen
@@ -26,6 +27,9 @@ from parley_core.model import Direction, Family, Objective
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.compile import KernelKind, KernelObjective
 from parley_core.quotient.relaxation import relax, storm_model
+
+if TYPE_CHECKING:
+    from parley_core.exact import ExactResult
 
 PRECISION = 1e-9
 """Sound value iteration's precision on the relaxation: absolute for probabilities, relative
@@ -40,7 +44,10 @@ class Bound:
     points: np.ndarray = field(eq=False)
     method: str
     exact: bool = False
+    """The points are the family's whole Pareto front (branch and bound finished)."""
     seconds: float = 0.0
+    details: dict = field(factory=dict, eq=False)
+    """How the bound was found (branch and bound: nodes, pruned, evaluated, open, stopped by)."""
 
     def dominates(self, values: np.ndarray, tolerance: float = 1e-9) -> np.ndarray:
         """Which rows of ``values`` some point of the bound weakly dominates (to ``tolerance``
@@ -146,4 +153,32 @@ def ideal_point(family: Family, quotient: Quotient) -> Bound:
         points=np.array([point]),
         method="ideal point: per objective the best over all schedulers of the quotient's relaxation (Storm)",
         seconds=time.perf_counter() - start,
+    )
+
+
+def refined_bound(family: Family, result: ExactResult, front: np.ndarray, constraints: Sequence = ()) -> Bound:
+    """The bound branch and bound leaves: its front and the ideal points of the sub-families
+    it did not resolve (all of which it proved to hold no better policy otherwise)."""
+    directions = [o.direction for o in family.objectives]
+    points = np.asarray(result.bound, dtype=float).reshape(-1, len(directions))
+    if len(points):
+        points = points[metrics.nondominated(points, directions)]
+    return Bound(
+        objectives=family.objectives,
+        points=points,
+        method=(
+            "branch and bound: the whole Pareto front, proven on the quotient's relaxation"
+            if result.exact
+            else "branch and bound: the front and the ideal points of the sub-families left open"
+        ),
+        exact=result.exact,
+        seconds=result.seconds,
+        details={
+            "nodes": result.nodes,
+            "pruned": result.pruned,
+            "evaluated": result.evaluated,
+            "open": result.open,
+            "unknown": result.unknown,
+            "stopped_by": result.stopped_by,
+        },
     )

@@ -131,11 +131,15 @@ def run(
     reporter: Reporter | None = None,
     verify: bool = True,
     bound: str = "ideal",
+    bound_time: float | None = None,
 ) -> RunResult:
     """Baselines, search, verification, bound; returns everything the report needs.
 
     ``bound``: "ideal" (default) computes the ideal point over the quotient's relaxation,
-    a certified outer bound of the family (:mod:`parley_core.bound`); "none" skips it.
+    a certified outer bound of the family (:mod:`parley_core.bound`); "refine" runs branch
+    and bound over the decisions' ranges after the search (:mod:`parley_core.exact`) for at
+    most ``bound_time`` seconds (None: until the front is proven exact), whose policies join
+    the front and whose open sub-families make the bound; "none" skips it.
 
     ``verify=False`` skips re-checking the front with Storm when another evaluator searched
     (campaigns may choose it for time); the result then says so (``verification.by``).
@@ -161,25 +165,33 @@ def run(
             reporter.note(
                 f"search interrupted after {result.generations} generations; writing the front of what was evaluated"
             )
+        refined = None
+        if bound == "refine" and not result.interrupted:
+            with _timed(timings, "bound"):
+                refined = _refine(family, engine, result, bound_time, reporter)
     except BaseException:
         engine.close(abort=True)
         raise
     engine.close()
 
     names = [o.name for o in family.objectives]
-    feasible = meets(result.values, names, settings.constraints)
+    found_policies, found_values = result.policies, result.values
+    if refined is not None and len(refined.values):
+        found_policies = np.vstack([found_policies, refined.policies])
+        found_values = np.vstack([found_values, refined.values])
+    feasible = meets(found_values, names, settings.constraints)
     if not feasible.any():
-        best = ", ".join(f"{o.name} {_best(result.values[:, i], o):.4g}" for i, o in enumerate(family.objectives))
+        best = ", ".join(f"{o.name} {_best(found_values[:, i], o):.4g}" for i, o in enumerate(family.objectives))
         raise SearchError(
             f"no evaluated policy meets {' and '.join(map(str, settings.constraints))} (best values seen: {best}); "
             "relax the constraints or search longer"
         )
-    feasible &= metrics.front_candidates(result.values)
+    feasible &= metrics.front_candidates(found_values)
     if not feasible.any():
         raise SearchError("every evaluated policy has a NaN objective value; check the objectives' formulas")
-    mask = metrics.nondominated(result.values[feasible], directions)
-    candidates = result.policies[feasible][mask]
-    values = result.values[feasible][mask]
+    mask = metrics.nondominated(found_values[feasible], directions)
+    candidates = found_policies[feasible][mask]
+    values = found_values[feasible][mask]
     with _timed(timings, "verify"):
         if kind is EvaluatorKind.STORM:
             verification = by_search()
@@ -218,7 +230,11 @@ def run(
         values=values[order],
     )
     found = None
-    if bound != "none":
+    if refined is not None:
+        from parley_core.bound import refined_bound
+
+        found = refined_bound(family, refined, np.array(front.values), settings.constraints)
+    elif bound != "none":
         with _timed(timings, "bound"):
             reporter.stage("bound")
             from parley_core.bound import ideal_point
@@ -242,6 +258,28 @@ def run(
         selected=metrics.knee(np.array(front.values), directions),
         timings=timings,
         bound=found,
+    )
+
+
+def _refine(family: Family, engine: Evaluator, result: SearchResult, seconds: float | None, reporter: Reporter):
+    """Branch and bound after the search, seeded with everything the search evaluated."""
+    from parley_core.exact import branch_and_bound
+    from parley_core.quotient.coloring import build_quotient
+
+    quotient = getattr(engine, "quotient", None) or build_quotient(family)
+    steps = 1000
+    reporter.stage("branch and bound", steps)
+    done = 0
+
+    def progress(fraction: float) -> None:
+        nonlocal done
+        now = min(steps, int(fraction * steps))
+        if now > done:
+            reporter.advance(now - done)
+            done = now
+
+    return branch_and_bound(
+        family, quotient, engine.evaluate, seeds=(result.policies, result.values), time_limit=seconds, progress=progress
     )
 
 

@@ -98,6 +98,7 @@ def optimality(result: RunResult, front_hypervolume: float) -> dict[str, Any] | 
         "exact": bound.exact,
         "bound_points": len(bound.points),
         "seconds": round(bound.seconds, 4),
+        **({"search": bound.details} if bound.details else {}),
     }
 
 

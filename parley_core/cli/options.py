@@ -79,7 +79,13 @@ BoundOption = Annotated[
     typer.Option(
         "--bound",
         help="ideal: a certified outer bound of the family (the best per objective over all schedulers of the "
-        "quotient's relaxation) and the front's gap to it; none: skip it.",
+        "quotient's relaxation) and the front's gap to it; refine: branch and bound over the decisions' ranges "
+        "after the search, for --bound-time seconds (a tighter bound, its policies join the front; exact when "
+        "it finishes); none: skip it.",
     ),
+]
+BoundTimeOption = Annotated[
+    float,
+    typer.Option("--bound-time", min=0.001, help="With --bound refine: stop branch and bound after this many seconds."),
 ]
 OutOption = Annotated[Path | None, typer.Option(help="Run directory (default: runs/NAME-TIMESTAMP).")]

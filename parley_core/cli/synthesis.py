@@ -17,6 +17,7 @@ from parley_core.cli.options import (
     POPULATION,
     SEED,
     BoundOption,
+    BoundTimeOption,
     CaseArgument,
     ConstraintOption,
     DecisionOption,
@@ -53,6 +54,7 @@ def run_command(
     constraint: ConstraintOption = None,
     workers: WorkersOption = None,
     bound: BoundOption = "ideal",
+    bound_time: BoundTimeOption = 60.0,
 ) -> None:
     """Synthesize a URC: search for Pareto-optimal policies, verify them with Storm, write a run directory."""
     settings = search_settings(
@@ -64,7 +66,42 @@ def run_command(
         constraint=constraint,
     )
     out = out or Path("runs") / f"{case}-{time.strftime('%Y%m%d-%H%M%S')}"
-    _synthesize(lambda reporter: prepare_case(case, set_, reporter), settings, out, force, evaluator, workers, bound)
+    _synthesize(
+        lambda reporter: prepare_case(case, set_, reporter), settings, out, force, evaluator, workers, bound, bound_time
+    )
+
+
+@app.command("exact")
+@user_errors
+def exact_command(
+    case: CaseArgument,
+    set_: SetOption = None,
+    seed: SeedOption = SEED,
+    time_limit: Annotated[
+        float | None,
+        typer.Option("--time-limit", min=0.001, help="Stop branch and bound after this many seconds (default: none)."),
+    ] = None,
+    out: OutOption = None,
+    force: ForceOption = False,
+    workers: WorkersOption = None,
+) -> None:
+    """The whole Pareto front of a case study's family: a search, then branch and bound over the
+    decisions' ranges until no sub-family can hold a better policy (or --time-limit: the front
+    and bound so far, with the gap); a run directory like `parley run`'s."""
+    settings = search_settings(
+        population=POPULATION, generations=None, max_evaluations=None, time_limit=None, seed=seed, constraint=None
+    )
+    out = out or Path("runs") / f"{case}-exact-{time.strftime('%Y%m%d-%H%M%S')}"
+    _synthesize(
+        lambda reporter: prepare_case(case, set_, reporter),
+        settings,
+        out,
+        force,
+        EvaluatorKind.QUOTIENT.value,
+        workers,
+        "refine",
+        time_limit,
+    )
 
 
 @app.command("synthesize")
@@ -96,6 +133,7 @@ def synthesize_command(
     evaluator: EvaluatorOption = EvaluatorKind.QUOTIENT.value,
     workers: WorkersOption = None,
     bound: BoundOption = "ideal",
+    bound_time: BoundTimeOption = 60.0,
 ) -> None:
     """Synthesize a URC for your own PRISM model: the same pipeline and run directory as `parley run`."""
     from parley_core.pipeline import prepare
@@ -115,11 +153,18 @@ def synthesize_command(
         constraint=constraint,
     )
     out = out or Path("runs") / f"{model.stem}-{time.strftime('%Y%m%d-%H%M%S')}"
-    _synthesize(prepare_with, settings, out, force, evaluator, workers, bound)
+    _synthesize(prepare_with, settings, out, force, evaluator, workers, bound, bound_time)
 
 
 def _synthesize(
-    prepare_with, settings, out: Path, force: bool, evaluator: str, workers: int | None, bound: str = "ideal"
+    prepare_with,
+    settings,
+    out: Path,
+    force: bool,
+    evaluator: str,
+    workers: int | None,
+    bound: str = "ideal",
+    bound_time: float | None = None,
 ) -> None:
     """Prepare, search, verify, write and print a run (shared by `run` and `synthesize`)."""
     from parley_core.pipeline import run
@@ -127,13 +172,15 @@ def _synthesize(
     from parley_core.verify import TOLERANCE, Verified
 
     kind = EvaluatorKind.of(evaluator)
-    if bound not in ("ideal", "none"):
-        raise OptionError(f"unknown --bound {bound!r}; valid: ideal, none")
+    if bound not in ("ideal", "refine", "none"):
+        raise OptionError(f"unknown --bound {bound!r}; valid: ideal, refine, none")
     console = Console()
     check_output(out, force)
     with RichReporter(stderr()) as reporter:
         prepared = prepare_with(reporter)
-        result = run(prepared, settings, evaluator=kind, workers=workers, reporter=reporter, bound=bound)
+        result = run(
+            prepared, settings, evaluator=kind, workers=workers, reporter=reporter, bound=bound, bound_time=bound_time
+        )
         reporter.stage("write report")
         written = write_run(result, out, force=force)
     if out / PLOT_ERROR in written:
@@ -155,8 +202,20 @@ def _synthesize(
         + (f" (gain {gain:+.1f}%)" if gain is not None else "")
         + f"; reference point {reference}"
     )
-    if optimality is not None:
+    if optimality is not None and optimality["exact"]:
+        details = optimality["search"]
+        console.print(
+            f"exact: the front is the family's whole Pareto front (branch and bound: {details['nodes']} nodes, "
+            f"{details['pruned']} pruned, {details['evaluated']} policies evaluated, {result.bound.seconds:.1f} s)"
+        )
+    elif optimality is not None:
         gap = optimality["gap"]
+        details = optimality.get("search")
+        if details:
+            console.print(
+                f"branch and bound stopped by {details['stopped_by']} after {details['nodes']} nodes "
+                f"({details['pruned']} pruned, {details['evaluated']} policies evaluated, {details['open']} open)"
+            )
         console.print(
             "optimality: "
             + (

@@ -39,6 +39,11 @@ class Relaxation:
     probabilities: np.ndarray = field(eq=False, repr=False)
     rewards: np.ndarray = field(eq=False, repr=False)
     stuck: np.ndarray = field(eq=False, repr=False)
+    state_decisions: np.ndarray = field(eq=False, repr=False)
+    """CSR over states into ``decisions``: the decisions a state's choices consult; a state's
+    actions are their assignments in mixed radix, the first decision's digit fastest."""
+    decisions: np.ndarray = field(eq=False, repr=False)
+    domain_sizes: np.ndarray = field(eq=False, repr=False)
 
     @property
     def sink(self) -> int:
@@ -70,6 +75,33 @@ def _state_decisions(choice_dec, first, last, buffer):
 
 
 @njit(cache=True)
+def _widest(state_choices, choice_dec):
+    """An upper bound on the distinct decisions one state's choices consult."""
+    most = 0
+    for s in range(state_choices.shape[0] - 1):
+        most = max(most, state_choices[s + 1] - state_choices[s])
+    return max(1, most * choice_dec.shape[1])
+
+
+@njit(cache=True)
+def _decision_lists(state_choices, choice_dec):
+    """Per state the decisions its choices consult (CSR: pointers, flat list)."""
+    states = state_choices.shape[0] - 1
+    buffer = np.empty(_widest(state_choices, choice_dec), dtype=np.int64)
+    pointers = np.zeros(states + 2, dtype=np.int64)
+    flat = np.empty(max(1, state_choices[-1] * max(1, choice_dec.shape[1])), dtype=np.int64)
+    total = 0
+    for s in range(states):
+        n = _state_decisions(choice_dec, state_choices[s], state_choices[s + 1], buffer)
+        for i in range(n):
+            flat[total + i] = buffer[i]
+        total += n
+        pointers[s + 1] = total
+    pointers[states + 1] = total  # the sink consults nothing
+    return pointers, flat[:total].copy()
+
+
+@njit(cache=True)
 def _consistent(choice_dec, choice_val, c, decisions, n, digits, dom_ptr, dom_vals):
     for j in range(choice_dec.shape[1]):
         d = choice_dec[c, j]
@@ -91,7 +123,7 @@ def _relax(state_choices, choice_branches, targets, probabilities, choice_dec, c
     states = state_choices.shape[0] - 1
     sink = states
     n_rewards = state_rewards.shape[0]
-    decisions = np.empty(max(1, choice_dec.shape[1] * 64), dtype=np.int64)
+    decisions = np.empty(_widest(state_choices, choice_dec), dtype=np.int64)
     digits = np.zeros(decisions.shape[0], dtype=np.int64)
     actions = 0
     entries = 0
@@ -184,7 +216,11 @@ def relax(quotient: Quotient, family: Family) -> Relaxation:
     merged_actions = action_of[starts]
     action_entries = np.zeros(actions + 2, dtype=np.int64)
     np.add.at(action_entries, merged_actions + 1, 1)
+    state_decisions, decisions = _decision_lists(q.state_choices, q.choice_dec)
     return Relaxation(
+        state_decisions=state_decisions,
+        decisions=decisions,
+        domain_sizes=np.diff(dom_ptr),
         states=q.states + 1,
         initial=q.initial,
         state_actions=state_actions,

@@ -1,0 +1,256 @@
+"""Exact Pareto fronts by branch and bound over the decisions' ranges.
+
+A node is a sub-family (per decision an interval of its domain). Its bound, on the
+quotient's relaxation (:mod:`parley_core.quotient.bounds`), is the ideal point of its
+schedulers and a few weighted sums (half-spaces): every policy of the node lies in that
+region. The archive of evaluated values is kept with its *local upper bounds* (Klamroth,
+Lacour and Vanderpooten 2015): the corners u whose open orthants ``{v > u}`` make up exactly
+the points no archived value weakly dominates. A node none of whose region reaches beyond a
+corner holds no policy with a new value, and is pruned. A node whose decisions leave at most
+``leaf`` policies (decisions no reached state consults collapse to one value) is evaluated
+policy by policy. When no node is left, the archive's non-dominated values are the whole
+Pareto front (as a set of values); with a time limit the open nodes' ideal points join the
+front in the bound.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+import time
+from collections.abc import Callable
+
+import numpy as np
+from attrs import field, frozen
+
+from parley_core.model import Family
+from parley_core.quotient.bounds import RelaxedObjectives
+from parley_core.quotient.coloring import Quotient
+
+LEAF = 48
+"""Nodes with at most this many policies are evaluated rather than split."""
+CUTS = 3
+"""Weighted sums tried per node before it is split."""
+BATCH = 4096
+"""Policies handed to the evaluator at a time."""
+FLOOR = -1e300
+TOLERANCE = 1e-9
+"""The front is exact to this: every policy of the family is weakly dominated by a front
+value once each objective is given this much (of the value's size, at least 1)."""
+
+
+class Archive:
+    """Values in sign space (maximised) with their local upper bounds."""
+
+    def __init__(self, n: int) -> None:
+        self.points = np.zeros((0, n))
+        self.corners = np.full((1, n), -np.inf)
+
+    def add(self, point: np.ndarray) -> bool:
+        """Add one value; False if the archive already weakly dominates it (or it is NaN)."""
+        if np.isnan(point).any():
+            return False
+        point = np.maximum(point, FLOOR)  # an infinitely bad value is still a value
+        if len(self.points) and (self.points >= point).all(axis=1).any():
+            return False
+        self.points = np.vstack([self.points[~(self.points <= point).all(axis=1)], point])
+        hit = (self.corners < point).all(axis=1)
+        born = np.repeat(self.corners[hit], len(point), axis=0)
+        columns = np.tile(np.arange(len(point)), hit.sum())
+        born[np.arange(len(born)), columns] = point[columns]
+        kept = self.corners[~hit]
+        everyone = np.vstack([kept, born])
+        # a corner whose orthant lies inside another's is redundant
+        below = (everyone[None, :, :] <= born[:, None, :]).all(axis=2)
+        same = (everyone[None, :, :] == born[:, None, :]).all(axis=2)
+        first_same = np.argmax(same, axis=1) == np.arange(len(kept), len(everyone))
+        redundant = (below & ~same).any(axis=1) | ~first_same
+        self.corners = np.vstack([kept, born[~redundant]])
+        return True
+
+    def open_corners(self, ideal: np.ndarray, cuts: list[tuple[np.ndarray, float]]) -> np.ndarray:
+        """The corners whose orthant meets the region (ideal box and half-spaces) by more than
+        the tolerance: a value better than the archive's by less than TOLERANCE (of its size,
+        at least 1) in every objective it improves counts as found."""
+        slack = TOLERANCE * np.maximum(1.0, np.abs(np.where(np.isfinite(ideal), ideal, 0.0)))
+        inside = (self.corners < ideal - slack).all(axis=1)
+        finite = np.maximum(self.corners, FLOOR)
+        for weights, level in cuts:
+            inside &= finite @ weights < level - weights @ slack
+        return self.corners[inside]
+
+
+def depth(ideal: np.ndarray, corners: np.ndarray, scale: np.ndarray) -> float:
+    """How far the ideal point reaches beyond the archive: the largest, over open corners, of
+    the smallest scaled distance to the ideal (the node's priority)."""
+    if not len(corners):
+        return 0.0
+    gaps = np.minimum((ideal[None, :] - np.maximum(corners, FLOOR)) / scale, 1e300)
+    return float(gaps.min(axis=1).max())
+
+
+@frozen
+class Node:
+    lo: np.ndarray = field(eq=False)
+    hi: np.ndarray = field(eq=False)
+    ideal: np.ndarray | None = field(default=None, eq=False)
+    cuts: tuple[tuple[np.ndarray, float], ...] = ()
+
+    def size(self) -> int:
+        return math.prod(int(h - l + 1) for l, h in zip(self.lo, self.hi))
+
+
+@frozen(kw_only=True)
+class ExactResult:
+    """The non-dominated evaluated policies (rows of decision values) and values (the
+    objectives' units), the bound's points, and how the search went."""
+
+    policies: np.ndarray = field(eq=False)
+    values: np.ndarray = field(eq=False)
+    bound: np.ndarray = field(eq=False)
+    exact: bool
+    nodes: int
+    pruned: int
+    evaluated: int
+    unknown: int
+    open: int
+    seconds: float
+    stopped_by: str
+
+
+def branch_and_bound(
+    family: Family,
+    quotient: Quotient,
+    evaluate: Callable[[np.ndarray], np.ndarray],
+    seeds: tuple[np.ndarray, np.ndarray] | None = None,
+    time_limit: float | None = None,
+    progress: Callable[[float], None] | None = None,
+    leaf: int = LEAF,
+) -> ExactResult:
+    """The family's Pareto front (see the module docstring). ``evaluate`` maps rows of decision
+    values to objective values; ``seeds`` (rows, values) start the archive; ``progress``
+    receives the fraction of the family resolved so far (pruned or evaluated), or of the time
+    limit used if that is more."""
+    start = time.perf_counter()
+    bounds = RelaxedObjectives(family, quotient)
+    signs = bounds.signs
+    domains = [np.array(d.service.values, dtype=np.int64) for d in family.decisions]
+    archive = Archive(len(signs))
+    kept_rows: list[np.ndarray] = []
+    kept_values: list[np.ndarray] = []
+
+    def admit(rows: np.ndarray, values: np.ndarray) -> None:
+        for row, value in zip(rows, values):
+            if archive.add(value * signs):
+                kept_rows.append(row)
+                kept_values.append(value)
+
+    if seeds is not None and len(seeds[0]):
+        admit(*seeds)
+    total = math.prod(int(s) for s in bounds.sizes)
+    resolved = 0.0
+    stack: list[tuple[float, int, Node]] = [(0.0, 0, Node(np.zeros(len(domains), dtype=np.int64), bounds.sizes - 1))]
+    scale = np.ones(len(signs))
+    counter = itertools.count(1)
+    pending: list[np.ndarray] = []
+    nodes = pruned = evaluated = unknown = 0
+    stopped_by = "complete"
+
+    def flush() -> None:
+        nonlocal evaluated, unknown
+        if not pending:
+            return
+        rows = np.vstack(pending)
+        pending.clear()
+        values = np.asarray(evaluate(rows), dtype=float).reshape(len(rows), len(signs))
+        evaluated += len(rows)
+        unknown += int(np.isnan(values).any(axis=1).sum())
+        admit(rows, values)
+
+    def resolve(share: int) -> None:
+        nonlocal resolved
+        resolved += share
+        if progress is not None:
+            elapsed = (time.perf_counter() - start) / time_limit if time_limit else 0.0
+            progress(max(resolved / total, min(1.0, elapsed)))
+
+    while stack:
+        if time_limit is not None and time.perf_counter() - start > time_limit:
+            stopped_by = "time"
+            break
+        _, _, node = heapq.heappop(stack)
+        nodes += 1
+        share = node.size()
+        if node.ideal is not None and not len(archive.open_corners(node.ideal, list(node.cuts))):
+            pruned += 1
+            resolve(share)
+            continue
+        view = bounds.restrict(node.lo, node.hi)
+        consulted = bounds.consulted(view)
+        lo, hi = node.lo.copy(), node.hi.copy()
+        hi[~consulted] = lo[~consulted]
+        width = hi - lo + 1
+        if math.prod(int(w) for w in width) <= leaf:
+            for digits in itertools.product(*(range(a, b + 1) for a, b in zip(lo, hi))):
+                pending.append(np.array([domains[d][x] for d, x in enumerate(digits)], dtype=np.int64))
+            if len(pending) >= BATCH:
+                flush()
+            resolve(share)
+            continue
+        ideal = np.maximum(bounds.ideal(view), FLOOR)
+        if node.ideal is not None:
+            ideal = np.minimum(ideal, node.ideal)
+        else:  # the root: scale distances by the family's extent
+            spread = ideal - archive.points.min(axis=0) if len(archive.points) else np.ones(len(signs))
+            scale = np.where(np.isfinite(spread) & (spread > 0), spread, 1.0)
+        cuts = list(node.cuts)
+        corners = archive.open_corners(ideal, cuts)
+        for _ in range(CUTS if bounds.weighted_ok else 0):
+            if not len(corners):
+                break
+            gaps = ideal[None, :] - corners
+            if not np.isfinite(gaps).all(axis=1).any():
+                break
+            corner = corners[np.argmax(np.where(np.isfinite(gaps), gaps, -np.inf).min(axis=1))]
+            weights = 1.0 / np.maximum(ideal - corner, 1e-12)
+            weights /= weights.max()
+            cuts.append((weights, float(bounds.weighted(view, weights)[0])))
+            corners = archive.open_corners(ideal, cuts)
+        if not len(corners):
+            pruned += 1
+            resolve(share)
+            continue
+        # split the widest consulted decision in two
+        d = int(np.argmax(np.where(consulted, width, 0)))
+        middle = (lo[d] + hi[d]) // 2
+        upper_lo, lower_hi = lo.copy(), hi.copy()
+        upper_lo[d], lower_hi[d] = middle + 1, middle
+        resolve(share - math.prod(int(w) for w in width))  # what collapsed decisions repeat
+        priority = -depth(ideal, corners, scale)
+        heapq.heappush(stack, (priority, next(counter), Node(upper_lo, hi, ideal, tuple(cuts))))
+        heapq.heappush(stack, (priority, next(counter), Node(lo, lower_hi, ideal, tuple(cuts))))
+    flush()
+    rows = np.array(kept_rows, dtype=np.int64).reshape(-1, len(domains))
+    values = np.array(kept_values, dtype=float).reshape(-1, len(signs))
+    # the archive drops what a later value dominates: keep the policies whose value it still holds
+    alive = np.array([(archive.points == np.maximum(v * signs, FLOOR)).all(axis=1).any() for v in values], dtype=bool)
+    rows, values = rows[alive.reshape(-1)], values[alive.reshape(-1)]
+    open_points = [np.where(n.ideal <= FLOOR, -np.inf, n.ideal) * signs for _, _, n in stack if n.ideal is not None]
+    if any(n.ideal is None for _, _, n in stack):
+        everything = bounds.restrict(np.zeros(len(domains), dtype=np.int64), bounds.sizes - 1)
+        open_points.append(bounds.ideal(everything) * signs)
+    bound = np.vstack([values, *open_points]) if open_points else values
+    return ExactResult(
+        policies=rows,
+        values=values,
+        bound=bound,
+        exact=not stack and unknown == 0,
+        nodes=nodes,
+        pruned=pruned,
+        evaluated=evaluated,
+        unknown=unknown,
+        open=len(stack),
+        seconds=time.perf_counter() - start,
+        stopped_by=stopped_by,
+    )

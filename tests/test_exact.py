@@ -1,0 +1,162 @@
+"""Branch and bound finds the whole Pareto front: as a set of values it equals the front of
+exhaustive enumeration, on tiny families of the case studies and on hand-written models with
+overlapping guards, synchronised decisions, per-policy deadlocks, ties and objectives of every
+shape; and a bound it leaves when stopped early is sound."""
+
+from __future__ import annotations
+
+import itertools
+import json
+
+import attrs
+import numpy as np
+import pytest
+from conftest import toy_system
+from test_bound import _families, _flip
+from test_quotient import OBJECTIVES, SYNCHRONISED, breaking_system
+from typer.testing import CliRunner
+
+from parley_core import metrics
+from parley_core.bound import refined_bound
+from parley_core.cli import app
+from parley_core.exact import Archive, branch_and_bound
+from parley_core.model import Objective
+from parley_core.pipeline import make_family
+from parley_core.quotient.coloring import build_quotient
+from parley_core.quotient.solver import QuotientSolver
+from parley_core.testing import case_study, family
+
+
+def narrow(name: str, assignments: list[str], width: int):
+    """A case study's family with every service's range cut to its first ``width`` values."""
+    case = case_study(name)
+    system = case.build(case.options(assignments))
+    services = [attrs.evolve(s, high=min(s.high, s.low + width - 1), choices=()) for s in system.services]
+    return make_family(attrs.evolve(system, services=services), prune=case.prune)
+
+
+def _solver(fam):
+    quotient = build_quotient(fam)
+    solver = QuotientSolver(quotient)
+    return quotient, lambda rows: np.array([solver.solve(row) for row in rows], dtype=float)
+
+
+def _front_set(values: np.ndarray, fam) -> np.ndarray:
+    directions = [o.direction for o in fam.objectives]
+    finite = ~np.isnan(values).any(axis=1)
+    values = values[finite]
+    return np.unique(np.round(values[metrics.nondominated(values, directions)], 9), axis=0)
+
+
+def _enumerate(fam, evaluate) -> tuple[np.ndarray, np.ndarray]:
+    rows = np.array(list(itertools.product(*(d.service.values for d in fam.decisions))), dtype=np.int64)
+    return rows, evaluate(rows)
+
+
+def _pairs():
+    breaking = breaking_system(OBJECTIVES)
+    chosen = {o.name: o for o in breaking.objectives}
+    # two objectives at a time, so that weighted sums of every combinable shape are exercised
+    for first, second, maximize in [
+        ("reach", "cumulative", {"reach"}),
+        ("bounded", "cumulative", set()),
+        ("bounded_until", "cumulative", {"cumulative"}),
+        ("until", "total", set()),
+        ("reward_reach", "reach", {"reach"}),
+    ]:
+        objectives = _flip([chosen[first], chosen[second]], maximize)
+        yield f"breaking {first}+{second}", make_family(attrs.evolve(breaking, objectives=objectives))
+
+
+def _cases():
+    yield "web_ids 3^6", narrow("web_ids", ["rounds=6"], 3)
+    yield "tas 4^6", family("tas", ["rounds=6", "max_interval=3"])
+    yield "robot_grid 3x3", narrow("robot_grid", ["size=3", "seed=2"], 3)
+    for name, fam in _families():
+        if name not in ("robot_grid 5x5", "web_ids", "tas"):
+            yield name, fam
+    yield from _pairs()
+    yield (
+        "synchronised, max load",
+        family(
+            toy_system(
+                prism=SYNCHRONISED,
+                observation=("a",),
+                objectives=[
+                    Objective(name="full", formula="P=? [F<=4 b=3]", direction="max"),
+                    Objective(name="load", formula='R{"b"}=? [C<=6]', direction="max"),
+                ],
+            )
+        ),
+    )
+
+
+CASES = list(_cases())
+
+
+@pytest.mark.parametrize("name,fam", CASES, ids=[c[0] for c in CASES])
+def test_branch_and_bound_equals_enumeration(name, fam):
+    quotient, evaluate = _solver(fam)
+    _, values = _enumerate(fam, evaluate)
+    expected = _front_set(values, fam)
+    for leaf in (1, 8):
+        result = branch_and_bound(fam, quotient, evaluate, leaf=leaf)
+        assert result.exact and result.stopped_by == "complete"
+        found = _front_set(result.values, fam)
+        assert found.shape == expected.shape, (name, leaf)
+        np.testing.assert_allclose(found, expected, rtol=1e-9, atol=1e-12)
+        # every policy returned has the value it claims
+        np.testing.assert_allclose(evaluate(result.policies), result.values, rtol=1e-12, atol=1e-15)
+
+
+def test_pruning_happens_and_seeds_count():
+    fam = family("tas", ["rounds=6", "max_interval=3"])
+    quotient, evaluate = _solver(fam)
+    cold = branch_and_bound(fam, quotient, evaluate, leaf=2)
+    rows, values = _enumerate(fam, evaluate)
+    seeded = branch_and_bound(fam, quotient, evaluate, seeds=(rows, values), leaf=2)
+    assert cold.pruned > 0 and cold.evaluated < len(rows)
+    # with the whole front known in advance, fewer policies need evaluating
+    assert seeded.evaluated < cold.evaluated
+    assert _front_set(seeded.values, fam).shape == _front_set(values, fam).shape
+
+
+@pytest.mark.parametrize("limit", [0.0, 0.5])
+def test_stopped_early_the_bound_is_sound(limit):
+    fam = narrow("web_ids", ["rounds=6"], 4)
+    quotient, evaluate = _solver(fam)
+    result = branch_and_bound(fam, quotient, evaluate, time_limit=limit, leaf=4)
+    assert not result.exact and result.open > 0
+    bound = refined_bound(fam, result, result.values)
+    _, values = _enumerate(fam, evaluate)
+    assert bound.dominates(values).all()
+
+
+def test_archive_corners_are_exactly_the_undominated_region():
+    rng = np.random.default_rng(3)
+    archive = Archive(3)
+    points = rng.integers(0, 6, size=(40, 3)).astype(float)
+    for point in points:
+        archive.add(point)
+    probes = rng.integers(-1, 7, size=(2000, 3)).astype(float) + 0.5
+    undominated = ~(points[None, :, :] >= probes[:, None, :]).all(axis=2).any(axis=1)
+    in_orthant = (archive.corners[None, :, :] < probes[:, None, :]).all(axis=2).any(axis=1)
+    assert (undominated == in_orthant).all()
+    kept = archive.points
+    assert not any((kept >= p).all(axis=1).sum() > 1 for p in kept)  # no duplicates, none dominated
+
+
+def test_parley_exact_writes_an_exact_run(tmp_path):
+    out = tmp_path / "exact"
+    result = CliRunner().invoke(app, ["exact", "tas", "--set", "rounds=4", "--set", "max_interval=2", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "exact: the front is the family's whole Pareto front" in result.output
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["optimality"]["exact"] is True
+    assert summary["optimality"]["gap"] == pytest.approx(0.0, abs=1e-9)
+    assert summary["verification"]["policies"] == len(summary and (out / "front.csv").read_text().splitlines()) - 1
+    fam = family("tas", ["rounds=4", "max_interval=2"])
+    _, evaluate = _solver(fam)
+    _, values = _enumerate(fam, evaluate)
+    front = np.loadtxt(out / "front.csv", delimiter=",", skiprows=1, usecols=range(1, 1 + len(fam.objectives)))
+    assert _front_set(front, fam).shape == _front_set(values, fam).shape
