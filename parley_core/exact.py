@@ -98,7 +98,7 @@ class Node:
     cuts: tuple[tuple[np.ndarray, float], ...] = ()
 
     def size(self) -> int:
-        return math.prod(int(h - l + 1) for l, h in zip(self.lo, self.hi))
+        return math.prod(int(high - low + 1) for low, high in zip(self.lo, self.hi))
 
 
 @frozen(kw_only=True)

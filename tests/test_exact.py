@@ -24,15 +24,11 @@ from parley_core.model import Objective
 from parley_core.pipeline import make_family
 from parley_core.quotient.coloring import build_quotient
 from parley_core.quotient.solver import QuotientSolver
-from parley_core.testing import case_study, family
+from parley_core.testing import family
 
 
 def narrow(name: str, assignments: list[str], width: int):
-    """A case study's family with every service's range cut to its first ``width`` values."""
-    case = case_study(name)
-    system = case.build(case.options(assignments))
-    services = [attrs.evolve(s, high=min(s.high, s.low + width - 1), choices=()) for s in system.services]
-    return make_family(attrs.evolve(system, services=services), prune=case.prune)
+    return family(name, assignments, width=width)
 
 
 def _solver(fam):
@@ -99,7 +95,7 @@ def test_branch_and_bound_equals_enumeration(name, fam):
     quotient, evaluate = _solver(fam)
     _, values = _enumerate(fam, evaluate)
     expected = _front_set(values, fam)
-    for leaf in (1, 8):
+    for leaf in (4, 32):
         result = branch_and_bound(fam, quotient, evaluate, leaf=leaf)
         assert result.exact and result.stopped_by == "complete"
         found = _front_set(result.values, fam)
@@ -110,15 +106,15 @@ def test_branch_and_bound_equals_enumeration(name, fam):
 
 
 def test_pruning_happens_and_seeds_count():
-    fam = family("tas", ["rounds=6", "max_interval=3"])
+    fam = narrow("robot_grid", ["size=4", "seed=1"], 3)
     quotient, evaluate = _solver(fam)
-    cold = branch_and_bound(fam, quotient, evaluate, leaf=2)
-    rows, values = _enumerate(fam, evaluate)
-    seeded = branch_and_bound(fam, quotient, evaluate, seeds=(rows, values), leaf=2)
-    assert cold.pruned > 0 and cold.evaluated < len(rows)
-    # with the whole front known in advance, fewer policies need evaluating
-    assert seeded.evaluated < cold.evaluated
-    assert _front_set(seeded.values, fam).shape == _front_set(values, fam).shape
+    size = np.prod([len(d.service.values) for d in fam.decisions])
+    cold = branch_and_bound(fam, quotient, evaluate, leaf=32)
+    assert cold.exact and cold.pruned > 0 and cold.evaluated < size / 100
+    # with the front known in advance, no more policies need evaluating, and the front is the same
+    seeded = branch_and_bound(fam, quotient, evaluate, seeds=(cold.policies, cold.values), leaf=32)
+    assert seeded.exact and seeded.evaluated <= cold.evaluated
+    np.testing.assert_allclose(_front_set(seeded.values, fam), _front_set(cold.values, fam), rtol=1e-9)
 
 
 @pytest.mark.parametrize("limit", [0.0, 0.5])
@@ -148,7 +144,9 @@ def test_archive_corners_are_exactly_the_undominated_region():
 
 def test_parley_exact_writes_an_exact_run(tmp_path):
     out = tmp_path / "exact"
-    result = CliRunner().invoke(app, ["exact", "tas", "--set", "rounds=4", "--set", "max_interval=2", "--out", str(out)])
+    result = CliRunner().invoke(
+        app, ["exact", "tas", "--set", "rounds=4", "--set", "max_interval=2", "--out", str(out)]
+    )
     assert result.exit_code == 0, result.output
     assert "exact: the front is the family's whole Pareto front" in result.output
     summary = json.loads((out / "summary.json").read_text())

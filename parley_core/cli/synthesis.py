@@ -206,7 +206,7 @@ def _synthesize(
         details = optimality["search"]
         console.print(
             f"exact: the front is the family's whole Pareto front (branch and bound: {details['nodes']} nodes, "
-            f"{details['pruned']} pruned, {details['evaluated']} policies evaluated, {result.bound.seconds:.1f} s)"
+            f"{details['pruned']} pruned, {details['evaluated']} policies evaluated, {optimality['seconds']:.1f} s)"
         )
     elif optimality is not None:
         gap = optimality["gap"]

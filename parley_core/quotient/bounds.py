@@ -8,6 +8,8 @@ domain's indices.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from parley_core.model import Direction, Family
@@ -71,8 +73,10 @@ class RelaxedObjectives:
         # weighted sums: step-bounded rewards plus at most one reachability objective
         kinds = [kernel.kind if kernel is not None else None for kernel in quotient.objectives]
         probabilities = [i for i, kind in enumerate(kinds) if kind in (KernelKind.UNTIL, KernelKind.BOUNDED)]
-        self.weighted_ok = all(self.supported) and len(probabilities) <= 1 and all(
-            kind in (KernelKind.CUMULATIVE, KernelKind.UNTIL, KernelKind.BOUNDED) for kind in kinds
+        self.weighted_ok = (
+            all(self.supported)
+            and len(probabilities) <= 1
+            and all(kind in (KernelKind.CUMULATIVE, KernelKind.UNTIL, KernelKind.BOUNDED) for kind in kinds)
         )
         self.until = probabilities[0] if probabilities else -1
         steps = [kernel.steps for kernel in quotient.objectives if kernel is not None]
@@ -139,14 +143,16 @@ class RelaxedObjectives:
 
     def _horizon(self, view: Restricted, weights: np.ndarray, until: int) -> np.ndarray:
         r = self.relaxation
-        cumulative = [i for i, kernel in enumerate(self.kernels) if kernel is not None and kernel.kind is KernelKind.CUMULATIVE]
-        rows = np.array([self.kernels[i].reward for i in cumulative], dtype=np.int64)
-        steps = np.array([self.kernels[i].steps for i in cumulative], dtype=np.int64)
+        found = [(i, kn) for i, kn in enumerate(self.kernels) if kn is not None and kn.kind is KernelKind.CUMULATIVE]
+        cumulative = [i for i, _ in found]
+        rows = np.array([kn.reward for _, kn in found], dtype=np.int64)
+        steps = np.array([kn.steps for _, kn in found], dtype=np.int64)
         coefficients = np.ascontiguousarray(weights[:, cumulative] * self.signs[cumulative])
         n = r.states
         left, right, until_steps, reach = np.ones(n, dtype=bool), np.zeros(n, dtype=bool), -1, np.zeros(n)
         if until >= 0:
             kernel = self.kernels[until]
+            assert kernel is not None
             left, right = self.left[until], self.right[until]
             if kernel.kind is KernelKind.BOUNDED:
                 until_steps = kernel.steps
@@ -157,9 +163,10 @@ class RelaxedObjectives:
             view.compact = k.compact(r.state_actions, r.action_entries, r.targets, r.probabilities, view.allowed,
                                      view.live)  # fmt: skip
         out = np.empty(len(weights))
+        solve: Any = k.weighted_horizon  # a numba dispatcher: mypy cannot see its signature
         for row, (w, c) in enumerate(zip(weights, coefficients)):
             gain = float(w[until] * self.signs[until]) if until >= 0 else 0.0
-            out[row] = k.weighted_horizon(
+            out[row] = solve(
                 *view.compact, n, r.rewards, rows, steps, np.ascontiguousarray(c), horizon, until >= 0, left, right,
                 until_steps, gain, gain * reach, r.initial,
             )  # fmt: skip

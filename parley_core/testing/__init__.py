@@ -17,6 +17,7 @@ import os
 import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 
+import attrs
 import numpy as np
 
 from parley_core.casestudy import CaseStudy
@@ -62,18 +63,30 @@ def case_study(name: str) -> CaseStudy:
 
 
 def family(
-    source: CaseStudy | str | SystemModel, assignments: Iterable[str] = (), *, prune: bool | None = None
+    source: CaseStudy | str | SystemModel,
+    assignments: Iterable[str] = (),
+    *,
+    prune: bool | None = None,
+    width: int | None = None,
 ) -> Family:
     """The family a run would search: a case study (or its name) built with ``--set``-style
     ``assignments`` over its defaults, or a system model, augmented. ``prune`` defaults to
-    the case study's own setting (False for a system model)."""
+    the case study's own setting (False for a system model). ``width`` cuts every service's
+    range to its first ``width`` values (a small family, for exhaustive checks), dropping the
+    baselines that leave it."""
     from parley_core.pipeline import make_family
 
     if isinstance(source, SystemModel):
-        return make_family(source, prune=bool(prune))
-    case = case_study(source) if isinstance(source, str) else source
-    system = case.build(case.options(list(assignments)))
-    return make_family(system, prune=case.prune if prune is None else prune)
+        system, default_prune = source, False
+    else:
+        case = case_study(source) if isinstance(source, str) else source
+        system, default_prune = case.build(case.options(list(assignments))), case.prune
+    if width is not None:
+        services = [attrs.evolve(s, high=min(s.high, s.low + width - 1), choices=()) for s in system.services]
+        ranges = {s.constant: s.values for s in services}
+        baselines = [b for b in system.baselines if all(v in ranges.get(c, (v,)) for c, v in b.values.items())]
+        system = attrs.evolve(system, services=services, baselines=baselines)
+    return make_family(system, prune=default_prune if prune is None else prune)
 
 
 def values(

@@ -1,0 +1,149 @@
+"""How good are Parley's fronts? Exact fronts by branch and bound, certified gaps, NSGA-II
+against the exact front.
+
+Three tables, printed as Markdown:
+
+1. exact fronts: per family its size, branch and bound's wall time, front size, nodes
+   explored and pruned, policies evaluated, and exhaustive enumeration's time and front for
+   comparison (both on the quotient evaluator, one process);
+2. certified gaps: per case study (its defaults) the gap of the default run's front to the
+   ideal-point bound, and to the bound branch and bound leaves after ``--bound-time``
+   seconds (``parley run CASE --bound refine``);
+3. NSGA-II (the default search: population 100, 40 generations) against the exact fronts of
+   table 1, over ``--seeds`` seeds: the fraction of the exact hypervolume reached (same
+   reference point), min / median / max.
+
+Usage: python benchmarks/optimality.py [--seeds 10] [--bound-time 60] [--skip-gaps]
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import time
+
+import numpy as np
+
+from parley_core import metrics
+from parley_core.exact import branch_and_bound
+from parley_core.pipeline import Prepared, prepare, run
+from parley_core.plugins import load_registry
+from parley_core.quotient.coloring import build_quotient
+from parley_core.quotient.solver import QuotientSolver
+from parley_core.search import SearchSettings
+from parley_core.testing import family
+
+EXACT = [
+    ("tas, intervals 0..3", "tas", ["rounds=6", "max_interval=3"], None),
+    ("web_ids, intervals cut to 4", "web_ids", ["rounds=6"], 4),
+    ("robot_grid 3x3, intervals cut to 3", "robot_grid", ["size=3", "seed=2"], 3),
+    ("robot_grid 4x4, intervals cut to 3", "robot_grid", ["size=4", "seed=1"], 3),
+]
+GAPS = [
+    ("robot_grid (10x10)", "robot_grid", []),
+    ("robot_grid 5x5", "robot_grid", ["size=5", "seed=1"]),
+    ("web_ids", "web_ids", []),
+    ("tas", "tas", []),
+    ("turtlebot", "turtlebot", []),
+]
+
+
+def prepared(name: str, options: list[str], width: int | None) -> Prepared:
+    case = load_registry().get(name)
+    small = family(name, options, width=width)
+    return Prepared(case=case, options=case.options(options), system=small.system, family=small)
+
+
+def exact_table(seeds: int) -> None:
+    print(
+        "| family | policies | branch and bound (s) | front | nodes | pruned | evaluated | enumeration (s) | same front |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    fronts = []
+    for label, name, options, width in EXACT:
+        prep = prepared(name, options, width)
+        fam = prep.family
+        quotient = build_quotient(fam)
+        solver = QuotientSolver(quotient)
+
+        def evaluate(rows, solver=solver):
+            return np.array([solver.solve(row) for row in rows], dtype=float)
+
+        size = int(np.prod([len(d.service.values) for d in fam.decisions]))
+        start = time.perf_counter()
+        result = branch_and_bound(fam, quotient, evaluate)
+        seconds = time.perf_counter() - start
+        if size <= 50_000:
+            start = time.perf_counter()
+            rows = np.array(list(itertools.product(*(d.service.values for d in fam.decisions))), dtype=np.int64)
+            values = evaluate(rows)
+            enumeration = time.perf_counter() - start
+            directions = [o.direction for o in fam.objectives]
+            expected = np.unique(np.round(values[metrics.nondominated(values, directions)], 9), axis=0)
+            found = np.unique(np.round(result.values, 9), axis=0)
+            same = "yes" if expected.shape == found.shape and np.allclose(expected, found, rtol=1e-9) else "NO"
+            enum_text = f"{enumeration:.1f}"
+        else:
+            same, enum_text = "not enumerated", "-"
+        print(
+            f"| {label} | {size} | {seconds:.1f} | {len(result.values)} | {result.nodes} | {result.pruned} | "
+            f"{result.evaluated} | {enum_text} | {same} |"
+        )
+        fronts.append((label, prep, result))
+    print()
+    print(f"NSGA-II (default search) against the exact front, {seeds} seeds: fraction of the exact hypervolume")
+    print()
+    print("| family | min | median | max | evaluations (median) |")
+    print("|---|---|---|---|---|")
+    for label, prep, result in fronts:
+        directions = [o.direction for o in prep.family.objectives]
+        fractions, evaluations = [], []
+        for seed in range(seeds):
+            found = run(prep, SearchSettings(seed=seed), verify=False, bound="none", workers=1)
+            reference = metrics.reference_point(prep.family.objectives, result.values, np.array(found.baseline.values))
+            exact_hv = metrics.hypervolume(result.values, directions, reference)
+            fractions.append(metrics.hypervolume(np.array(found.front.values), directions, reference) / exact_hv)
+            evaluations.append(found.search.evaluations)
+        print(
+            f"| {label} | {min(fractions):.5f} | {np.median(fractions):.5f} | {max(fractions):.5f} | "
+            f"{int(np.median(evaluations))} |"
+        )
+
+
+def gap_table(bound_time: float) -> None:
+    print()
+    print(f"| case study | ideal-point gap | bound (s) | refined gap ({bound_time:g} s) | nodes | pruned | evaluated |")
+    print("|---|---|---|---|---|---|---|")
+    for label, name, options in GAPS:
+        case = load_registry().get(name)
+        prep = prepare(case, case.options(options))
+        row = [label]
+        for mode in ("ideal", "refine"):
+            result = run(prep, SearchSettings(seed=1), bound=mode, bound_time=bound_time, verify=False)
+            directions = [o.direction for o in prep.family.objectives]
+            front_hv = metrics.hypervolume(np.array(result.front.values), directions, result.reference)
+            bound_hv = result.bound.hypervolume(result.reference)
+            gap = (bound_hv - front_hv) / bound_hv if np.isfinite(bound_hv) and bound_hv > 0 else float("nan")
+            row.append(f"{100 * gap:.2f}%" + (" (exact)" if result.bound.exact else ""))
+            if mode == "ideal":
+                row.append(f"{result.bound.seconds:.1f}")
+            else:
+                details = result.bound.details
+                row += [str(details["nodes"]), str(details["pruned"]), str(details["evaluated"])]
+        print("| " + " | ".join(row) + " |", flush=True)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument("--bound-time", type=float, default=60.0)
+    parser.add_argument("--skip-gaps", action="store_true")
+    args = parser.parse_args()
+    exact_table(args.seeds)
+    if not args.skip_gaps:
+        gap_table(args.bound_time)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
