@@ -182,3 +182,60 @@ def refined_bound(family: Family, result: ExactResult, front: np.ndarray, constr
             "stopped_by": result.stopped_by,
         },
     )
+
+
+DIRECTIONS = 24
+"""Weighted sums the Pareto outer approximation solves (two objectives)."""
+STEPS = 96
+"""Points of the staircase that covers the approximation's boundary from outside."""
+
+
+def pareto_outer(family: Family, quotient: Quotient, ideal: Bound | None = None) -> Bound:
+    """An outer approximation of the relaxation's Pareto curve, for two objectives that
+    combine in a weighted sum (step-bounded rewards and at most one reachability objective):
+    the ideal box cut by the half-spaces of ``DIRECTIONS`` weighted sums, each a sound upper
+    bound by backward induction on the relaxation (:mod:`parley_core.quotient.bounds`),
+    covered by a staircase of points. Otherwise (or if nothing is cut) the ideal point."""
+    from parley_core.quotient.bounds import RelaxedObjectives
+
+    start = time.perf_counter()
+    ideal = ideal or ideal_point(family, quotient)
+    bounds = RelaxedObjectives(family, quotient)
+    if len(family.objectives) != 2 or not bounds.weighted_ok or not np.isfinite(ideal.points).all():
+        return ideal
+    signs = bounds.signs
+    view = bounds.restrict(np.zeros(len(bounds.sizes), dtype=np.int64), bounds.sizes - 1)
+    top = np.minimum(ideal.points[0] * signs, bounds.ideal(view))  # sign space: maximised
+    # scale the objectives by how far the relaxation's worst-for-the-other extremes lie
+    angles = np.linspace(0.0, np.pi / 2, DIRECTIONS + 2)[1:-1]
+    extremes = bounds.weighted(view, np.array([[1.0, 1e-6], [1e-6, 1.0]]))
+    span = np.abs(top - np.array([extremes[1] - 1e-6 * top[1], extremes[0] - 1e-6 * top[0]]))
+    span = np.where(np.isfinite(span) & (span > 1e-12), span, 1.0)
+    weights = np.column_stack([np.cos(angles) / span[0], np.sin(angles) / span[1]])
+    levels = bounds.weighted(view, weights)
+    finite = np.isfinite(levels)
+    weights, levels = weights[finite], levels[finite]
+    if not len(levels):
+        return ideal
+
+    def height(x: np.ndarray) -> np.ndarray:
+        """The largest second objective the region allows at first objective x."""
+        cuts = (levels[None, :] - weights[None, :, 0] * x[:, None]) / weights[None, :, 1]
+        return np.minimum(top[1], cuts.min(axis=1))
+
+    # the region's top-left corner: where the cuts first go below the box
+    left = float(np.min((levels - weights[:, 1] * top[1]) / weights[:, 0]))
+    left = min(left, float(top[0]))
+    grid = np.linspace(left, float(top[0]), STEPS + 1)
+    heights = height(grid)
+    # point i covers x in [grid[i-1], grid[i]] (the height does not increase); the first covers x <= left
+    points = np.vstack([[grid[0], top[1]], np.column_stack([grid[1:], heights[:-1]])])
+    return Bound(
+        objectives=family.objectives,
+        points=points * signs,
+        method=(
+            "Pareto outer approximation: the relaxation's ideal box cut by "
+            f"{len(levels)} weighted sums (backward induction), covered by a staircase"
+        ),
+        seconds=ideal.seconds + time.perf_counter() - start,
+    )

@@ -130,13 +130,14 @@ def run(
     workers: int | None = None,
     reporter: Reporter | None = None,
     verify: bool = True,
-    bound: str = "ideal",
+    bound: str = "pareto",
     bound_time: float | None = None,
 ) -> RunResult:
     """Baselines, search, verification, bound; returns everything the report needs.
 
-    ``bound``: "ideal" (default) computes the ideal point over the quotient's relaxation,
-    a certified outer bound of the family (:mod:`parley_core.bound`); "refine" runs branch
+    ``bound``: "pareto" (default) an outer approximation of the Pareto curve of the
+    quotient's relaxation, "ideal" its ideal point: certified outer bounds of the family
+    (:mod:`parley_core.bound`); "refine" runs branch
     and bound over the decisions' ranges after the search (:mod:`parley_core.exact`) for at
     most ``bound_time`` seconds (None: until the front is proven exact), whose policies join
     the front and whose open sub-families make the bound; "none" skips it.
@@ -237,11 +238,13 @@ def run(
     elif bound != "none":
         with _timed(timings, "bound"):
             reporter.stage("bound")
-            from parley_core.bound import ideal_point
+            from parley_core.bound import ideal_point, pareto_outer
             from parley_core.quotient.coloring import build_quotient
 
             quotient = getattr(engine, "quotient", None) or build_quotient(family)
             found = ideal_point(family, quotient)
+            if bound == "pareto":
+                found = pareto_outer(family, quotient, found)
     reference = metrics.reference_point(family.objectives, np.array(front.values), np.array(baseline.values))
     describe = getattr(engine, "describe", None)
     return RunResult(

@@ -102,6 +102,26 @@ def optimality(result: RunResult, front_hypervolume: float) -> dict[str, Any] | 
     }
 
 
+def _staircase(points: np.ndarray, signs: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """The outline of what ``points`` (two objectives; ``signs`` +1 maximised, -1 minimised)
+    dominate up to ``reference``: a closed polygon in the objectives' units."""
+    space = points * signs
+    ref = reference * signs
+    space = space[(space > ref).all(axis=1)]
+    if not len(space):
+        return np.array([reference, reference])
+    space = space[np.argsort(-space[:, 0], kind="stable")]
+    best_y = np.maximum.accumulate(space[:, 1])
+    keep = np.r_[True, best_y[1:] > best_y[:-1]]
+    space = space[keep]
+    corners = [[ref[0], space[-1, 1]]]
+    for k in range(len(space) - 1, -1, -1):
+        corners.append([space[k, 0], space[k, 1]])
+        corners.append([space[k, 0], space[k - 1, 1] if k > 0 else ref[1]])
+    corners.append([ref[0], ref[1]])
+    return np.array(corners) * signs
+
+
 def bound_csv(result: RunResult) -> str:
     """The bound's points, one column per objective."""
     assert result.bound is not None
@@ -198,13 +218,17 @@ def plot_front(result: RunResult, path: Path) -> None:
             label=f"selected {result.front.policies[result.selected].name} (knee)",
         )
         if result.bound is not None and np.isfinite(result.bound.points).all():
-            points = np.asarray(result.bound.points)
-            ax.scatter(
-                points[:, i], points[:, j], marker="*", s=120, color="tab:green", label="bound (no policy beyond)"
-            )
-            for point in points:  # the region the bound leaves open: what it dominates
-                ax.axvline(point[i], color="tab:green", lw=0.6, ls="--")
-                ax.axhline(point[j], color="tab:green", lw=0.6, ls="--")
+            # the region the bound leaves open: what it dominates beyond what the front does
+            signs = -np.array([objectives[i].direction.sign, objectives[j].direction.sign])  # +1: maximised
+            reference = np.array([result.reference[i], result.reference[j]])
+            for points, color, label in (
+                (np.asarray(result.bound.points)[:, [i, j]], "tab:green", "bound: no policy beyond"),
+                (front[:, [i, j]], "tab:blue", None),
+            ):
+                outline = _staircase(points, signs, reference)
+                ax.fill(outline[:, 0], outline[:, 1], color=color, alpha=0.18, lw=0, label=label, zorder=0)
+            outline = _staircase(np.asarray(result.bound.points)[:, [i, j]], signs, reference)
+            ax.plot(outline[:-1, 0], outline[:-1, 1], color="tab:green", lw=1.0)
         for policy, row in zip(result.baseline.policies, base):
             ax.annotate(
                 policy.name.split("-")[-1],

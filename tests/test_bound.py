@@ -15,7 +15,7 @@ from conftest import toy_system
 from test_quotient import OBJECTIVES, STUCK, SYNCHRONISED, breaking_system
 from typer.testing import CliRunner
 
-from parley_core.bound import ideal_point
+from parley_core.bound import ideal_point, pareto_outer
 from parley_core.cli import app
 from parley_core.model import DecisionKind, Direction, Objective, Service
 from parley_core.quotient.coloring import build_quotient
@@ -73,7 +73,9 @@ def _families():
 
 @pytest.mark.parametrize("name, case", list(_families()), ids=lambda v: v if isinstance(v, str) else "")
 def test_every_policy_is_dominated_by_the_bound(name, case):
-    bound = ideal_point(case, build_quotient(case))
+    quotient = build_quotient(case)
+    bound = ideal_point(case, quotient)
+    outer = pareto_outer(case, quotient, bound)
     policies = np.vstack(
         [np.array([p.values for p in case.baseline_policies()]).reshape(-1, len(case.decisions)),
          case.random(np.random.default_rng(11), 40)]
@@ -81,6 +83,10 @@ def test_every_policy_is_dominated_by_the_bound(name, case):
     storm = values(case, policies)
     dominated = bound.dominates(storm)
     assert dominated.all(), f"{name}: {storm[~dominated][:3]} beyond the bound {bound.points}"
+    dominated = outer.dominates(storm)
+    assert dominated.all(), f"{name}: {storm[~dominated][:3]} beyond the Pareto outer approximation"
+    # the outer approximation is inside the ideal box
+    assert bound.dominates(outer.points).all()
 
 
 def test_a_bound_that_is_wrong_is_caught():

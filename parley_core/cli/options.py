@@ -78,8 +78,9 @@ BoundOption = Annotated[
     str,
     typer.Option(
         "--bound",
-        help="ideal: a certified outer bound of the family (the best per objective over all schedulers of the "
-        "quotient's relaxation) and the front's gap to it; refine: branch and bound over the decisions' ranges "
+        help="pareto (default): a certified outer bound of the family and the front's gap to it (the quotient's "
+        "relaxation's Pareto curve approximated from outside by weighted sums; two objectives, else the ideal "
+        "point); ideal: the best per objective over all schedulers of the relaxation; refine: branch and bound over the decisions' ranges "
         "after the search, for --bound-time seconds (a tighter bound, its policies join the front; exact when "
         "it finishes); none: skip it.",
     ),

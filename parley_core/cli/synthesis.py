@@ -53,7 +53,7 @@ def run_command(
     evaluator: EvaluatorOption = EvaluatorKind.QUOTIENT.value,
     constraint: ConstraintOption = None,
     workers: WorkersOption = None,
-    bound: BoundOption = "ideal",
+    bound: BoundOption = "pareto",
     bound_time: BoundTimeOption = 60.0,
 ) -> None:
     """Synthesize a URC: search for Pareto-optimal policies, verify them with Storm, write a run directory."""
@@ -132,7 +132,7 @@ def synthesize_command(
     force: ForceOption = False,
     evaluator: EvaluatorOption = EvaluatorKind.QUOTIENT.value,
     workers: WorkersOption = None,
-    bound: BoundOption = "ideal",
+    bound: BoundOption = "pareto",
     bound_time: BoundTimeOption = 60.0,
 ) -> None:
     """Synthesize a URC for your own PRISM model: the same pipeline and run directory as `parley run`."""
@@ -163,7 +163,7 @@ def _synthesize(
     force: bool,
     evaluator: str,
     workers: int | None,
-    bound: str = "ideal",
+    bound: str = "pareto",
     bound_time: float | None = None,
 ) -> None:
     """Prepare, search, verify, write and print a run (shared by `run` and `synthesize`)."""
@@ -172,8 +172,8 @@ def _synthesize(
     from parley_core.verify import TOLERANCE, Verified
 
     kind = EvaluatorKind.of(evaluator)
-    if bound not in ("ideal", "refine", "none"):
-        raise OptionError(f"unknown --bound {bound!r}; valid: ideal, refine, none")
+    if bound not in ("pareto", "ideal", "refine", "none"):
+        raise OptionError(f"unknown --bound {bound!r}; valid: pareto, ideal, refine, none")
     console = Console()
     check_output(out, force)
     with RichReporter(stderr()) as reporter:
