@@ -24,9 +24,10 @@ from attrs import field, frozen
 
 from parley_core import metrics
 from parley_core.model import Direction, Family, Objective
+from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.compile import KernelKind, KernelObjective
-from parley_core.quotient.relaxation import relax, storm_model
+from parley_core.quotient.relaxation import storm_model
 
 if TYPE_CHECKING:
     from parley_core.exact import ExactResult
@@ -48,6 +49,9 @@ class Bound:
     seconds: float = 0.0
     details: dict = field(factory=dict, eq=False)
     """How the bound was found (branch and bound: nodes, pruned, evaluated, open, stopped by)."""
+    cuts: tuple = field(default=(), eq=False, repr=False)
+    """Half-spaces (weights, level) in sign space (every objective maximised) that every
+    policy satisfies, where the method found them."""
 
     def dominates(self, values: np.ndarray, tolerance: float = 1e-9) -> np.ndarray:
         """Which rows of ``values`` some point of the bound weakly dominates (to ``tolerance``
@@ -122,16 +126,23 @@ def _solve(model, text: str) -> tuple[float, float]:
     return value, PRECISION * scale
 
 
-def ideal_point(family: Family, quotient: Quotient) -> Bound:
-    """The ideal point over all schedulers of the quotient's relaxation: a sound bound."""
+def ideal_point(
+    family: Family, quotient: Quotient, bounds: RelaxedObjectives | None = None, by_storm: bool = False
+) -> Bound:
+    """The ideal point over all schedulers of the quotient's relaxation: a sound bound. Each
+    objective the compiled kernels bound (:mod:`parley_core.quotient.bounds`, safe by
+    construction) is solved there, the others (all, with ``by_storm``) by Storm's sound value
+    iteration."""
     start = time.perf_counter()
-    relaxation = relax(quotient, family)
-    sink = np.zeros(relaxation.states, dtype=bool)
-    sink[relaxation.sink] = True
+    bounds = bounds or RelaxedObjectives(family, quotient)
+    relaxation = bounds.relaxation
+    everything = bounds.restrict(np.zeros(len(bounds.sizes), dtype=np.int64), bounds.sizes - 1)
+    own = bounds.ideal(everything) * bounds.signs
+    ours = [supported and not by_storm for supported in bounds.supported]
     labels: dict[str, np.ndarray] = {}
     queries: list[str | None] = []
     for i, (objective, kernel) in enumerate(zip(family.objectives, quotient.objectives)):
-        query = None if kernel is None else _query(i, objective, kernel)
+        query = None if kernel is None or ours[i] else _query(i, objective, kernel)
         queries.append(query)
         if query is None or kernel is None:
             continue
@@ -140,18 +151,21 @@ def ideal_point(family: Family, quotient: Quotient) -> Bound:
         if kernel.right is not None:
             # a policy's own deadlocks are the relaxation's moves to the sink
             labels[f"psi{i}"] = np.append(kernel.right, bool(kernel.right_deadlock))
-    model = storm_model(relaxation, labels)
+    model = storm_model(relaxation, labels) if any(q is not None for q in queries) else None
     point = []
-    for objective, kernel, query in zip(family.objectives, quotient.objectives, queries):
-        if query is None:
+    for i, (objective, kernel, query) in enumerate(zip(family.objectives, quotient.objectives, queries)):
+        if ours[i]:
+            point.append(float(own[i]))
+        elif query is None:
             point.append(_trivial(objective, kernel))
-            continue
-        value, precision = _solve(model, query)
-        point.append(value + precision * (1.0 if objective.direction is Direction.MAX else -1.0))
+        else:
+            value, precision = _solve(model, query)
+            point.append(value + precision * (1.0 if objective.direction is Direction.MAX else -1.0))
+    by = "compiled kernels" + (", Storm" if model is not None else "")
     return Bound(
         objectives=family.objectives,
         points=np.array([point]),
-        method="ideal point: per objective the best over all schedulers of the quotient's relaxation (Storm)",
+        method=f"ideal point: per objective the best over all schedulers of the quotient's relaxation ({by})",
         seconds=time.perf_counter() - start,
     )
 
@@ -170,7 +184,8 @@ def refined_bound(family: Family, result: ExactResult, front: np.ndarray, constr
             "branch and bound: the whole Pareto front, proven on the quotient's relaxation"
             if result.exact
             else "branch and bound: the front and the ideal points of the sub-families left open"
-        ),
+        )
+        + (f" (not covering {result.unknown} policies that have no value)" if result.unknown else ""),
         exact=result.exact,
         seconds=result.seconds,
         details={
@@ -190,17 +205,17 @@ STEPS = 96
 """Points of the staircase that covers the approximation's boundary from outside."""
 
 
-def pareto_outer(family: Family, quotient: Quotient, ideal: Bound | None = None) -> Bound:
+def pareto_outer(
+    family: Family, quotient: Quotient, ideal: Bound | None = None, bounds: RelaxedObjectives | None = None
+) -> Bound:
     """An outer approximation of the relaxation's Pareto curve, for two objectives that
     combine in a weighted sum (step-bounded rewards and at most one reachability objective):
     the ideal box cut by the half-spaces of ``DIRECTIONS`` weighted sums, each a sound upper
     bound by backward induction on the relaxation (:mod:`parley_core.quotient.bounds`),
     covered by a staircase of points. Otherwise (or if nothing is cut) the ideal point."""
-    from parley_core.quotient.bounds import RelaxedObjectives
-
     start = time.perf_counter()
-    ideal = ideal or ideal_point(family, quotient)
-    bounds = RelaxedObjectives(family, quotient)
+    bounds = bounds or RelaxedObjectives(family, quotient)
+    ideal = ideal or ideal_point(family, quotient, bounds)
     if len(family.objectives) != 2 or not bounds.weighted_ok or not np.isfinite(ideal.points).all():
         return ideal
     signs = bounds.signs
@@ -233,9 +248,32 @@ def pareto_outer(family: Family, quotient: Quotient, ideal: Bound | None = None)
     return Bound(
         objectives=family.objectives,
         points=points * signs,
+        cuts=tuple((w, float(c)) for w, c in zip(weights, levels)),
         method=(
             "Pareto outer approximation: the relaxation's ideal box cut by "
             f"{len(levels)} weighted sums (backward induction), covered by a staircase"
         ),
         seconds=ideal.seconds + time.perf_counter() - start,
+    )
+
+
+def intersect(first: Bound, second: Bound, method: str) -> Bound:
+    """A bound from two: what both leave open (per pair of points the worse value of each
+    objective, the dominated ones dropped), or the one with less hypervolume if that would
+    take more than a million pairs."""
+    directions = [o.direction for o in first.objectives]
+    a, b = np.asarray(first.points, dtype=float), np.asarray(second.points, dtype=float)
+    if len(a) * len(b) > 1_000_000:
+        return second if len(b) <= len(a) else first
+    signs = np.array([o.direction.sign for o in first.objectives])  # +1: minimised
+    pairs = np.maximum(a[:, None, :] * signs, b[None, :, :] * signs).reshape(-1, len(signs)) * signs
+    pairs = pairs[metrics.nondominated(pairs, directions)]
+    return Bound(
+        objectives=first.objectives,
+        points=np.unique(pairs, axis=0),
+        method=method,
+        exact=first.exact or second.exact,
+        seconds=first.seconds + second.seconds,
+        details={**first.details, **second.details},
+        cuts=first.cuts + second.cuts,
     )

@@ -127,11 +127,13 @@ def branch_and_bound(
     time_limit: float | None = None,
     progress: Callable[[float], None] | None = None,
     leaf: int = LEAF,
+    root_cuts: tuple[tuple[np.ndarray, float], ...] = (),
 ) -> ExactResult:
     """The family's Pareto front (see the module docstring). ``evaluate`` maps rows of decision
     values to objective values; ``seeds`` (rows, values) start the archive; ``progress``
     receives the fraction of the family resolved so far (pruned or evaluated), or of the time
-    limit used if that is more."""
+    limit used if that is more; ``root_cuts`` are half-spaces (weights, level; sign space) every
+    policy is known to satisfy."""
     start = time.perf_counter()
     bounds = RelaxedObjectives(family, quotient)
     signs = bounds.signs
@@ -150,7 +152,8 @@ def branch_and_bound(
         admit(*seeds)
     total = math.prod(int(s) for s in bounds.sizes)
     resolved = 0.0
-    stack: list[tuple[float, int, Node]] = [(0.0, 0, Node(np.zeros(len(domains), dtype=np.int64), bounds.sizes - 1))]
+    root = Node(np.zeros(len(domains), dtype=np.int64), bounds.sizes - 1, cuts=tuple(root_cuts))
+    stack: list[tuple[float, int, Node]] = [(0.0, 0, root)]
     scale = np.ones(len(signs))
     counter = itertools.count(1)
     pending: list[np.ndarray] = []

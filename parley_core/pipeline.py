@@ -166,10 +166,11 @@ def run(
             reporter.note(
                 f"search interrupted after {result.generations} generations; writing the front of what was evaluated"
             )
-        refined = None
+        refined = outer = None
         if bound == "refine" and not result.interrupted:
             with _timed(timings, "bound"):
-                refined = _refine(family, engine, result, bound_time, reporter)
+                outer = _outer(family, engine, "pareto")
+                refined = _refine(family, engine, result, bound_time, reporter, outer.cuts)
     except BaseException:
         engine.close(abort=True)
         raise
@@ -231,20 +232,16 @@ def run(
         values=values[order],
     )
     found = None
-    if refined is not None:
-        from parley_core.bound import refined_bound
+    if refined is not None and outer is not None:
+        from parley_core.bound import intersect, refined_bound
 
         found = refined_bound(family, refined, np.array(front.values), settings.constraints)
+        if not found.exact:
+            found = intersect(outer, found, found.method + ", within the Pareto outer approximation")
     elif bound != "none":
         with _timed(timings, "bound"):
             reporter.stage("bound")
-            from parley_core.bound import ideal_point, pareto_outer
-            from parley_core.quotient.coloring import build_quotient
-
-            quotient = getattr(engine, "quotient", None) or build_quotient(family)
-            found = ideal_point(family, quotient)
-            if bound == "pareto":
-                found = pareto_outer(family, quotient, found)
+            found = _outer(family, engine, bound)
     reference = metrics.reference_point(family.objectives, np.array(front.values), np.array(baseline.values))
     describe = getattr(engine, "describe", None)
     return RunResult(
@@ -264,7 +261,21 @@ def run(
     )
 
 
-def _refine(family: Family, engine: Evaluator, result: SearchResult, seconds: float | None, reporter: Reporter):
+def _outer(family: Family, engine: Evaluator, method: str) -> Bound:
+    """The cheap bound: the ideal point, cut by weighted sums for "pareto"."""
+    from parley_core.bound import ideal_point, pareto_outer
+    from parley_core.quotient.bounds import RelaxedObjectives
+    from parley_core.quotient.coloring import build_quotient
+
+    quotient = getattr(engine, "quotient", None) or build_quotient(family)
+    bounds = RelaxedObjectives(family, quotient)
+    found = ideal_point(family, quotient, bounds)
+    return pareto_outer(family, quotient, found, bounds) if method == "pareto" else found
+
+
+def _refine(
+    family: Family, engine: Evaluator, result: SearchResult, seconds: float | None, reporter: Reporter, cuts=()
+):
     """Branch and bound after the search, seeded with everything the search evaluated."""
     from parley_core.exact import branch_and_bound
     from parley_core.quotient.coloring import build_quotient
@@ -282,7 +293,13 @@ def _refine(family: Family, engine: Evaluator, result: SearchResult, seconds: fl
             done = now
 
     return branch_and_bound(
-        family, quotient, engine.evaluate, seeds=(result.policies, result.values), time_limit=seconds, progress=progress
+        family,
+        quotient,
+        engine.evaluate,
+        seeds=(result.policies, result.values),
+        time_limit=seconds,
+        progress=progress,
+        root_cuts=cuts,
     )
 
 

@@ -89,6 +89,20 @@ def test_every_policy_is_dominated_by_the_bound(name, case):
     assert bound.dominates(outer.points).all()
 
 
+@pytest.mark.parametrize("name, case", list(_families()), ids=lambda v: v if isinstance(v, str) else "")
+def test_the_kernels_ideal_point_is_storms_on_the_relaxation(name, case):
+    # the compiled kernels (safe by construction) against Storm's sound value iteration
+    quotient = build_quotient(case)
+    ours, storms = ideal_point(case, quotient), ideal_point(case, quotient, by_storm=True)
+    assert "Storm" in storms.method
+    for objective, a, b in zip(case.objectives, ours.points[0], storms.points[0]):
+        if np.isinf(a) or np.isinf(b):
+            assert a == b or (np.isinf(a) and objective.direction is Direction.MAX), (name, objective.name, a, b)
+            continue
+        # Storm widens by its precision, 1e-9 of the largest state value
+        assert abs(a - b) <= 1e-6 * max(1.0, abs(b)), (name, objective.name, a, b)
+
+
 def test_a_bound_that_is_wrong_is_caught():
     # the check itself can fail: a bound moved inside the values is not a bound
     case = family("tas", ["rounds=6", "max_interval=3"])

@@ -24,7 +24,7 @@ from parley_core.model import Objective
 from parley_core.pipeline import make_family
 from parley_core.quotient.coloring import build_quotient
 from parley_core.quotient.solver import QuotientSolver
-from parley_core.testing import family
+from parley_core.testing import case_study, family
 
 
 def narrow(name: str, assignments: list[str], width: int):
@@ -158,3 +158,21 @@ def test_parley_exact_writes_an_exact_run(tmp_path):
     _, values = _enumerate(fam, evaluate)
     front = np.loadtxt(out / "front.csv", delimiter=",", skiprows=1, usecols=range(1, 1 + len(fam.objectives)))
     assert _front_set(front, fam).shape == _front_set(values, fam).shape
+
+
+def test_a_refined_run_bound_is_sound_and_no_looser_than_the_outer_one():
+    from parley_core.pipeline import Prepared, run
+    from parley_core.search import SearchSettings
+
+    fam = narrow("web_ids", ["rounds=6"], 4)
+    case = case_study("web_ids")
+    prepared = Prepared(case=case, options=case.options(["rounds=6"]), system=fam.system, family=fam)
+    settings = SearchSettings(population=8, generations=2, seed=3)
+    outer = run(prepared, settings, workers=1, verify=False, bound="pareto").bound
+    refined = run(prepared, settings, workers=1, verify=False, bound="refine", bound_time=0.3).bound
+    assert outer is not None and refined is not None
+    _, evaluate = _solver(fam)
+    _, values = _enumerate(fam, evaluate)
+    assert refined.dominates(values).all() and outer.dominates(values).all()
+    # the refined bound lies within the outer one
+    assert outer.dominates(refined.points).all()

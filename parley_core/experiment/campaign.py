@@ -160,8 +160,15 @@ def run_spec(spec: RunSpec) -> RunRecord:
     case = load_registry().get(spec.case)
     options = case.options(spec.assignments)
     prepared = prepare(case, options)
+    # no bound per run: it depends on the instance alone and costs seconds on a 10x10 map,
+    # which 900 runs would repeat (a per-instance bound for the report is still to come)
     result = run(
-        prepared, spec.budget.settings(spec.seed), evaluator=spec.budget.evaluator, workers=1, verify=spec.budget.verify
+        prepared,
+        spec.budget.settings(spec.seed),
+        evaluator=spec.budget.evaluator,
+        workers=1,
+        verify=spec.budget.verify,
+        bound="none",
     )
     family = result.family
     return RunRecord(
