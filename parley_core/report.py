@@ -220,6 +220,9 @@ def plot_front(result: RunResult, path: Path) -> None:
         if result.bound is not None and np.isfinite(result.bound.points).all():
             # the region the bound leaves open: what it dominates beyond what the front does
             signs = -np.array([objectives[i].direction.sign, objectives[j].direction.sign])  # +1: maximised
+            bound_points = np.asarray(result.bound.points)[:, [i, j]]
+            ax.scatter(bound_points[:, 0], bound_points[:, 1], s=0)  # the view takes in the bound ...
+            limits = ax.get_xlim(), ax.get_ylim()  # ... but not the reference point the regions reach
             reference = np.array([result.reference[i], result.reference[j]])
             for points, color, label in (
                 (np.asarray(result.bound.points)[:, [i, j]], "tab:green", "bound: no policy beyond"),
@@ -227,8 +230,10 @@ def plot_front(result: RunResult, path: Path) -> None:
             ):
                 outline = _staircase(points, signs, reference)
                 ax.fill(outline[:, 0], outline[:, 1], color=color, alpha=0.18, lw=0, label=label, zorder=0)
-            outline = _staircase(np.asarray(result.bound.points)[:, [i, j]], signs, reference)
+            outline = _staircase(bound_points, signs, reference)
             ax.plot(outline[:-1, 0], outline[:-1, 1], color="tab:green", lw=1.0)
+            ax.set_xlim(*limits[0])
+            ax.set_ylim(*limits[1])
         for policy, row in zip(result.baseline.policies, base):
             ax.annotate(
                 policy.name.split("-")[-1],
