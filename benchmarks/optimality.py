@@ -39,6 +39,7 @@ EXACT = [
     ("web_ids, intervals cut to 4", "web_ids", ["rounds=6"], 4),
     ("robot_grid 3x3, intervals cut to 3", "robot_grid", ["size=3", "seed=2"], 3),
     ("robot_grid 4x4, intervals cut to 3", "robot_grid", ["size=4", "seed=1"], 3),
+    ("robot_grid 4x4, intervals cut to 4", "robot_grid", ["size=4", "seed=1"], 4),
 ]
 GAPS = [
     ("robot_grid (10x10)", "robot_grid", []),
