@@ -170,7 +170,7 @@ def ideal_point(
     )
 
 
-def refined_bound(family: Family, result: ExactResult, front: np.ndarray, constraints: Sequence = ()) -> Bound:
+def refined_bound(family: Family, result: ExactResult) -> Bound:
     """The bound branch and bound leaves: its front and the ideal points of the sub-families
     it did not resolve (all of which it proved to hold no better policy otherwise)."""
     directions = [o.direction for o in family.objectives]
@@ -259,12 +259,12 @@ def pareto_outer(
 
 def intersect(first: Bound, second: Bound, method: str) -> Bound:
     """A bound from two: what both leave open (per pair of points the worse value of each
-    objective, the dominated ones dropped), or the one with less hypervolume if that would
-    take more than a million pairs."""
+    objective, the dominated ones dropped), or ``second`` alone if that would take more than
+    a million pairs (each is sound on its own)."""
     directions = [o.direction for o in first.objectives]
     a, b = np.asarray(first.points, dtype=float), np.asarray(second.points, dtype=float)
     if len(a) * len(b) > 1_000_000:
-        return second if len(b) <= len(a) else first
+        return second
     signs = np.array([o.direction.sign for o in first.objectives])  # +1: minimised
     pairs = np.maximum(a[:, None, :] * signs, b[None, :, :] * signs).reshape(-1, len(signs)) * signs
     pairs = pairs[metrics.nondominated(pairs, directions)]

@@ -128,14 +128,15 @@ def branch_and_bound(
     progress: Callable[[float], None] | None = None,
     leaf: int = LEAF,
     root_cuts: tuple[tuple[np.ndarray, float], ...] = (),
+    bounds: RelaxedObjectives | None = None,
 ) -> ExactResult:
     """The family's Pareto front (see the module docstring). ``evaluate`` maps rows of decision
     values to objective values; ``seeds`` (rows, values) start the archive; ``progress``
     receives the fraction of the family resolved so far (pruned or evaluated), or of the time
     limit used if that is more; ``root_cuts`` are half-spaces (weights, level; sign space) every
-    policy is known to satisfy."""
+    policy is known to satisfy; ``bounds`` the family's relaxed objectives, if already built."""
     start = time.perf_counter()
-    bounds = RelaxedObjectives(family, quotient)
+    bounds = bounds or RelaxedObjectives(family, quotient)
     signs = bounds.signs
     domains = [np.array(d.service.values, dtype=np.int64) for d in family.decisions]
     archive = Archive(len(signs))

@@ -169,8 +169,9 @@ def run(
         refined = outer = None
         if bound == "refine" and not result.interrupted:
             with _timed(timings, "bound"):
-                outer = _outer(family, engine, "pareto")
-                refined = _refine(family, engine, result, bound_time, reporter, outer.cuts)
+                cheap = _outer(family, engine, "pareto")
+                outer = cheap[0]
+                refined = _refine(family, engine, result, bound_time, reporter, cheap)
     except BaseException:
         engine.close(abort=True)
         raise
@@ -235,13 +236,13 @@ def run(
     if refined is not None and outer is not None:
         from parley_core.bound import intersect, refined_bound
 
-        found = refined_bound(family, refined, np.array(front.values), settings.constraints)
+        found = refined_bound(family, refined)
         if not found.exact:
             found = intersect(outer, found, found.method + ", within the Pareto outer approximation")
     elif bound != "none":
         with _timed(timings, "bound"):
             reporter.stage("bound")
-            found = _outer(family, engine, bound)
+            found = _outer(family, engine, bound)[0]
     reference = metrics.reference_point(family.objectives, np.array(front.values), np.array(baseline.values))
     describe = getattr(engine, "describe", None)
     return RunResult(
@@ -261,8 +262,9 @@ def run(
     )
 
 
-def _outer(family: Family, engine: Evaluator, method: str) -> Bound:
-    """The cheap bound: the ideal point, cut by weighted sums for "pareto"."""
+def _outer(family: Family, engine: Evaluator, method: str):
+    """The cheap bound (the ideal point, cut by weighted sums for "pareto") and the family's
+    relaxed objectives it was computed on, for branch and bound to reuse."""
     from parley_core.bound import ideal_point, pareto_outer
     from parley_core.quotient.bounds import RelaxedObjectives
     from parley_core.quotient.coloring import build_quotient
@@ -270,17 +272,15 @@ def _outer(family: Family, engine: Evaluator, method: str) -> Bound:
     quotient = getattr(engine, "quotient", None) or build_quotient(family)
     bounds = RelaxedObjectives(family, quotient)
     found = ideal_point(family, quotient, bounds)
-    return pareto_outer(family, quotient, found, bounds) if method == "pareto" else found
+    return (pareto_outer(family, quotient, found, bounds) if method == "pareto" else found), bounds
 
 
-def _refine(
-    family: Family, engine: Evaluator, result: SearchResult, seconds: float | None, reporter: Reporter, cuts=()
-):
-    """Branch and bound after the search, seeded with everything the search evaluated."""
+def _refine(family: Family, engine: Evaluator, result: SearchResult, seconds: float | None, reporter: Reporter, outer):
+    """Branch and bound after the search, seeded with everything the search evaluated and
+    started from the cheap bound's half-spaces (``outer``: what :func:`_outer` returns)."""
     from parley_core.exact import branch_and_bound
-    from parley_core.quotient.coloring import build_quotient
 
-    quotient = getattr(engine, "quotient", None) or build_quotient(family)
+    found, bounds = outer
     steps = 1000
     reporter.stage("branch and bound", steps)
     done = 0
@@ -294,12 +294,13 @@ def _refine(
 
     return branch_and_bound(
         family,
-        quotient,
+        bounds.quotient,
         engine.evaluate,
         seeds=(result.policies, result.values),
         time_limit=seconds,
         progress=progress,
-        root_cuts=cuts,
+        root_cuts=found.cuts,
+        bounds=bounds,
     )
 
 

@@ -123,7 +123,7 @@ def test_stopped_early_the_bound_is_sound(limit):
     quotient, evaluate = _solver(fam)
     result = branch_and_bound(fam, quotient, evaluate, time_limit=limit, leaf=4)
     assert not result.exact and result.open > 0
-    bound = refined_bound(fam, result, result.values)
+    bound = refined_bound(fam, result)
     _, values = _enumerate(fam, evaluate)
     assert bound.dominates(values).all()
 
@@ -152,7 +152,7 @@ def test_parley_exact_writes_an_exact_run(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["optimality"]["exact"] is True
     assert summary["optimality"]["gap"] == pytest.approx(0.0, abs=1e-9)
-    assert summary["verification"]["policies"] == len(summary and (out / "front.csv").read_text().splitlines()) - 1
+    assert summary["verification"]["policies"] == len((out / "front.csv").read_text().splitlines()) - 1
     fam = family("tas", ["rounds=4", "max_interval=2"])
     _, evaluate = _solver(fam)
     _, values = _enumerate(fam, evaluate)

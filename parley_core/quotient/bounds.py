@@ -41,6 +41,7 @@ class RelaxedObjectives:
 
     def __init__(self, family: Family, quotient: Quotient, relaxation: Relaxation | None = None) -> None:
         self.family = family
+        self.quotient = quotient
         self.relaxation = r = relaxation if relaxation is not None else relax(quotient, family)
         self.signs = np.array([1.0 if o.direction is Direction.MAX else -1.0 for o in family.objectives])
         self.kernels = quotient.objectives
