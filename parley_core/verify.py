@@ -1,8 +1,10 @@
 """Verification: every value on a front is Storm's.
 
-A front found with the quotient evaluator is re-checked policy by policy by the Storm
-evaluator (sound value iteration at 1e-12); the result records the largest difference
-between the two, and Storm's values replace the search's. A front found with the Storm
+A front found with the quotient evaluator is re-checked by Storm (sound value iteration at
+1e-12); the result records the largest difference between the two, and Storm's values
+replace the search's. Storm checks *policy programs* by default, many policies per build
+(:mod:`parley_core.evaluate.batch`, :data:`Path.BATCH`), or the augmented program one
+policy at a time (the reference, :data:`Path.REFERENCE`); the result says which. A front found with the Storm
 evaluator is Storm's already. Campaigns may skip the re-check for time and say so
 (:attr:`Verified.NOT_CHECKED`), and re-check later (``parley experiment verify``).
 """
@@ -15,12 +17,34 @@ import time
 import numpy as np
 from attrs import frozen
 
-from parley_core.errors import EvaluatorDisagreement
+from parley_core.errors import EvaluatorDisagreement, OptionError
 from parley_core.model import Family
 from parley_core.progress import NullReporter, Reporter
 
 TOLERANCE = 1e-9
 """How far the search's evaluator may be from Storm: 1e-9 times the value's size (at least 1)."""
+
+
+class Path(enum.Enum):
+    """How Storm was given the policies (the value is what run files record)."""
+
+    BATCH = "policy programs"
+    """The original model with each service constant a formula of the observation and the
+    policy, several policies per program (:mod:`parley_core.evaluate.batch`)."""
+    REFERENCE = "augmented program"
+    """The augmented model with the decision constants defined, one policy per build."""
+
+    @classmethod
+    def of(cls, path: Path | str) -> Path:
+        if isinstance(path, Path):
+            return path
+        names = {"batch": cls.BATCH, "reference": cls.REFERENCE}
+        if path in names:
+            return names[path]
+        try:
+            return cls(path)
+        except ValueError:
+            raise OptionError(f"unknown verification path {path!r}; valid: batch, reference") from None
 
 
 class Verified(enum.Enum):
@@ -46,10 +70,13 @@ class Verification:
     """The largest difference relative to the value's size (at least 1): what :data:`TOLERANCE` bounds."""
     baselines: int = 0
     """Baselines re-checked besides the front's policies."""
+    path: str = ""
+    """How Storm was given the policies (a :class:`Path` value; empty when Storm did not re-check)."""
 
     def to_json(self) -> dict[str, object]:
         return {
             "by": self.by.value,
+            "path": self.path,
             "policies": self.policies,
             "baselines": self.baselines,
             "max_difference": self.max_difference,
@@ -67,6 +94,7 @@ class Verification:
             seconds=float(data.get("seconds", 0.0)),
             max_relative_difference=float(data.get("max_relative_difference", float("nan"))),
             baselines=int(data.get("baselines", 0)),
+            path=str(data.get("path", "")),
         )
 
 
@@ -107,18 +135,22 @@ def check_with_storm(
     reporter: Reporter | None = None,
     names: list[str | None] | None = None,
     baselines: int = 0,
+    path: Path | str = Path.BATCH,
 ) -> tuple[Verification, np.ndarray]:
     """Storm's values of ``policies``, and how far they are from ``values`` (the search's).
 
     A difference beyond :data:`TOLERANCE` is a parley defect, not a figure:
     :class:`~parley_core.errors.EvaluatorDisagreement` names the policy, the objective and
     both values. ``names`` name the policies in that message (None: by their decisions);
-    the first ``baselines`` rows are the baselines, counted apart in the result."""
-    from parley_core.evaluate.storm import StormEvaluator
-
+    the first ``baselines`` rows are the baselines, counted apart in the result. ``path``:
+    how Storm gets the policies (:class:`Path`); a family read back from files, which has no
+    original model to write policy programs from, takes the reference path."""
     reporter = reporter or NullReporter()
     start = time.perf_counter()
-    with StormEvaluator(family, workers=workers) as storm:
+    path = Path.of(path)
+    if family.system is None:
+        path = Path.REFERENCE
+    with storm_verifier(family, path, workers) as storm:
         reporter.stage("verify with Storm", len(policies))
         checked = storm.evaluate(policies, progress=reporter.advance)
     absolute, relative = differences(values, checked)
@@ -140,5 +172,17 @@ def check_with_storm(
         max_difference=float(absolute.max()) if len(values) else 0.0,
         max_relative_difference=float(relative.max()) if len(values) else 0.0,
         seconds=time.perf_counter() - start,
+        path=path.value,
     )
     return verification, checked
+
+
+def storm_verifier(family: Family, path: Path | str = Path.BATCH, workers: int | None = None):
+    """The Storm evaluator of a verification path."""
+    if Path.of(path) is Path.BATCH:
+        from parley_core.evaluate.batch import BatchStormEvaluator
+
+        return BatchStormEvaluator(family, workers=workers)
+    from parley_core.evaluate.storm import StormEvaluator
+
+    return StormEvaluator(family, workers=workers)

@@ -7,6 +7,7 @@ one by sound value iteration with the precision chosen per property shape
 from __future__ import annotations
 
 from concurrent.futures import ProcessPoolExecutor
+from typing import Any
 
 import numpy as np
 import stormpy
@@ -59,7 +60,12 @@ def unbounded_reward(prop) -> bool:
 
 
 def check_value(model, prop, relative_environment: stormpy.Environment) -> float:
-    """One property's value at the model's initial state, by sound value iteration.
+    """One property's value at the model's (only) initial state; see :func:`check_values`."""
+    return check_values(model, prop, relative_environment, [model.initial_states[0]])[0]
+
+
+def check_values(model, prop, relative_environment: stormpy.Environment, states) -> list[float]:
+    """One property's values at ``states``, by sound value iteration.
 
     A probability is solved to a relative precision of 1e-12: Storm's graph analysis leaves
     only states with values strictly between 0 and 1 to the solver. An unbounded reward is
@@ -69,14 +75,47 @@ def check_value(model, prop, relative_environment: stormpy.Environment) -> float
     an absolute precision of 1e-12 times the largest value of any state, which Storm's
     default solver estimates first (a bound of 1e-12 relative to the largest value; the
     estimate only sets where to stop, the bound is sound value iteration's)."""
-    initial = model.initial_states[0]
     if not unbounded_reward(prop):
-        return float(stormpy.model_checking(model, prop, environment=relative_environment).get_value(initial))
+        result = stormpy.model_checking(model, prop, environment=relative_environment)
+        return [float(result.get_value(s)) for s in states]
     estimate = np.asarray(stormpy.model_checking(model, prop).get_value_vector(), dtype=float)
     finite = estimate[np.isfinite(estimate)]
     scale = max(1.0, float(np.abs(finite).max())) if len(finite) else 1.0
     absolute = reference_environment(PRECISION * scale, relative=False)
-    return float(stormpy.model_checking(model, prop, environment=absolute).get_value(initial))
+    result = stormpy.model_checking(model, prop, environment=absolute)
+    return [float(result.get_value(s)) for s in states]
+
+
+def check_instance(
+    instance, properties, objective_names, unbounded: list[bool], environment, *, valuations: bool = False
+) -> tuple[Any, list[list[float]]]:
+    """Build a program whose constants are all defined and check every property at each of
+    its initial states: the model and ``values[state][objective]``.
+
+    A model of at most :data:`EXACT_STATES` states with one initial state has its unbounded
+    rewards checked in exact rational arithmetic. ``valuations``: build the state valuations
+    too (to tell initial states apart)."""
+    options = stormpy.BuilderOptions(properties)
+    if valuations:
+        options.set_build_state_valuations()
+    try:
+        model = stormpy.build_model(instance, options=options)
+        exact = None
+        if model.nr_states <= EXACT_STATES and any(unbounded) and len(model.initial_states) == 1:
+            exact = stormpy.build_model[stormpy.Rational](instance, properties)
+    except RuntimeError as exc:
+        raise ModelError(f"Storm cannot build the model: {prism.storm_message(exc)}") from None
+    initial = list(model.initial_states)
+    columns = []
+    for prop, name, is_unbounded in zip(properties, objective_names, unbounded):
+        try:
+            if exact is not None and is_unbounded:
+                columns.append([float(stormpy.model_checking(exact, prop).get_value(exact.initial_states[0]))])
+            else:
+                columns.append(check_values(model, prop, environment, initial))
+        except RuntimeError as exc:
+            raise ModelError(f"Storm cannot check objective {name!r}: {prism.storm_message(exc)}") from None
+    return model, [list(row) for row in zip(*columns)] if columns else [[] for _ in initial]
 
 
 @frozen(kw_only=True)
@@ -120,25 +159,12 @@ class StormChecker:
         instance = self.program.define_undefined_constants(
             {v: manager.integer(int(k)) for v, k in zip(self.variables, values)}
         )
-        try:
-            model = stormpy.build_model(instance, self.properties)
-            exact = None
-            if model.nr_states <= EXACT_STATES and any(self.unbounded_rewards):
-                exact = stormpy.build_model[stormpy.Rational](instance, self.properties)
-        except RuntimeError as exc:
-            raise ModelError(f"Storm cannot build the model: {prism.storm_message(exc)}") from None
-        if len(model.initial_states) != 1:
-            raise ModelError(f"the model has {len(model.initial_states)} initial states; parley needs exactly one")
-        result = []
-        for prop, name, unbounded in zip(self.properties, self.task.objective_names, self.unbounded_rewards):
-            try:
-                if exact is not None and unbounded:
-                    result.append(float(stormpy.model_checking(exact, prop).get_value(exact.initial_states[0])))
-                else:
-                    result.append(check_value(model, prop, self.environment))
-            except RuntimeError as exc:
-                raise ModelError(f"Storm cannot check objective {name!r}: {prism.storm_message(exc)}") from None
-        return result
+        model, rows = check_instance(
+            instance, self.properties, self.task.objective_names, self.unbounded_rewards, self.environment
+        )
+        if len(rows) != 1:
+            raise ModelError(f"the model has {len(rows)} initial states; parley needs exactly one")
+        return rows[0]
 
 
 _CHECKERS: dict[StormTask, StormChecker] = {}

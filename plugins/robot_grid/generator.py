@@ -146,7 +146,10 @@ def prism_model(
             Constant(name="c", comment=f"localisation interval in moves, 1..{max_interval}"),
         ],
         formulas=[Formula(name="hasCrashed", expression=crash)],
-        modules=[robot, controller, knowledge, turn],
+        # Turn first: Storm tries the modules of an action in this order and stops at the
+        # first without an enabled command, and Turn disables two actions in three in every
+        # state (the builder takes half the time; the DTMC is the same).
+        modules=[turn, robot, controller, knowledge],
         rewards=[
             Rewards(
                 name="cost",

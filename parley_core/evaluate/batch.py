@@ -1,0 +1,189 @@
+"""Storm's values of many policies at once: the default verification path.
+
+Each batch of policies is written as one *policy program* (:mod:`parley_core.prism.policy`):
+the original model with each service constant a formula of the observation variables and
+the policy index, one initial state per policy. Storm parses, builds and checks it like any
+program, with the reference evaluator's solver settings (:func:`storm.check_instance`); the
+value at the initial state with ``parley_policy = i`` is policy ``i``'s.
+
+It shares nothing with the quotient evaluator (no quotient, no choice consistency, no UMB
+export), and nothing with the reference evaluator but the solver settings: the augmented
+program is not read at all, so a defect in augmentation would show up as a disagreement.
+It is 5 to 25 times faster than the reference (``benchmarks/verify.py``), because Storm's
+builder evaluates one command instead of one copy per observation valuation, and because one
+build serves many policies.
+
+Families whose objectives include an unbounded reward (``R=? [F ...]``, ``R=? [C]``) are
+checked one policy per program: the reference solves those to a precision relative to the
+largest value of the model, which a batch would share between its policies, or exactly
+when the model is small. So are objectives that mention the ``"init"`` label, which a batch
+with several initial states would change.
+"""
+
+from __future__ import annotations
+
+import math
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+from attrs import frozen
+
+from parley_core.errors import ModelError
+from parley_core.evaluate.pool import default_workers, spawn_pool, stop_pool
+from parley_core.evaluate.storm import check_instance, reference_environment, unbounded_reward
+from parley_core.model import Family
+from parley_core.prism import program as prism
+from parley_core.prism.policy import INDEX, PolicyTemplate, policy_template
+from parley_core.progress import Progress
+
+BATCH_STATES = 400_000
+"""The states a batch aims at: the batch size is this over the states of a policy's DTMC
+(measured on the first batch), between 1 and :data:`MAX_BATCH`."""
+
+FIRST_BATCH = 4
+MAX_BATCH = 64
+
+
+@frozen(kw_only=True)
+class BatchTask:
+    """What a process needs to check batches of one family (picklable)."""
+
+    template: PolicyTemplate
+    formulas: tuple[str, ...]
+    objective_names: tuple[str, ...]
+    lows: tuple[int, ...]
+    """A policy to try the program on (every decision at its lowest value)."""
+
+    @classmethod
+    def of(cls, family: Family) -> BatchTask:
+        return cls(
+            template=policy_template(family),
+            lows=family.lows,
+            formulas=tuple(o.formula for o in family.objectives),
+            objective_names=tuple(o.name for o in family.objectives),
+        )
+
+
+class BatchChecker:
+    """Checks batches of policies of one family in this process."""
+
+    def __init__(self, task: BatchTask) -> None:
+        self.task = task
+        self.environment = reference_environment()
+        probe = self._program(np.array([task.lows], dtype=np.int64).reshape(1, -1))
+        properties = prism.parse_properties(task.formulas, probe, origin="objective")
+        self.unbounded = [unbounded_reward(p) for p in properties]
+        self.single = any(self.unbounded) or any('"init"' in f for f in task.formulas)
+        """Whether every policy needs a program of its own (module docstring)."""
+
+    def _program(self, policies: np.ndarray):
+        return prism.parse_program(self.task.template.render(policies), origin="the policy program")
+
+    def check(self, policies: np.ndarray) -> tuple[np.ndarray, int]:
+        """Values [len(policies), objectives] and the batch model's number of states."""
+        program = self._program(policies)
+        properties = prism.parse_properties(self.task.formulas, program, origin="objective")
+        model, rows = check_instance(
+            program, properties, self.task.objective_names, self.unbounded, self.environment, valuations=True
+        )
+        if len(rows) != len(policies):
+            raise ModelError(
+                f"the policy program of {len(policies)} policies has {len(rows)} initial states; "
+                "parley needs exactly one per policy (does the model have exactly one initial state?)"
+            )
+        variable = program.expression_manager.get_variable(INDEX)
+        out = np.full((len(policies), len(self.task.formulas)), np.nan)
+        for state, row in zip(model.initial_states, rows):
+            out[model.state_valuations.get_int64_value(state, variable)] = row
+        if np.isnan(out).any():
+            raise RuntimeError("a policy of the batch has no initial state of its own")
+        return out, int(model.nr_states)
+
+
+_CHECKERS: dict[BatchTask, BatchChecker] = {}
+"""Per worker process: the checker of each task seen (a cache, filled by _worker_check)."""
+
+
+def _worker_check(task: BatchTask, policies: np.ndarray) -> tuple[np.ndarray, int]:
+    checker = _CHECKERS.get(task)
+    if checker is None:
+        _CHECKERS.clear()
+        checker = _CHECKERS[task] = BatchChecker(task)
+    return checker.check(policies)
+
+
+class BatchStormEvaluator:
+    """Evaluate policies with Storm in batches, in this process or in ``workers`` processes."""
+
+    name = "storm"
+    path = "policy programs"
+    """How the values were obtained, as ``summary.json`` records it."""
+
+    def __init__(self, family: Family, workers: int | None = None) -> None:
+        self.family = family
+        self.task = BatchTask.of(family)
+        self.local = BatchChecker(self.task)
+        self.workers = default_workers(workers)
+        self._pool: ProcessPoolExecutor | None = None
+        self.states_per_policy: float | None = None
+
+    def batch_size(self, remaining: int) -> int:
+        if self.local.single:
+            return 1
+        if self.states_per_policy is None:
+            return min(FIRST_BATCH, remaining)
+        size = int(BATCH_STATES / max(1.0, self.states_per_policy))
+        # at least two batches per worker, so that neither waits for the other at the end
+        share = math.ceil(remaining / (2 * self.workers))
+        return max(1, min(size, MAX_BATCH, share))
+
+    def evaluate(self, policies: np.ndarray, progress: Progress | None = None) -> np.ndarray:
+        policies = np.asarray(policies, dtype=np.int64).reshape(-1, len(self.family.decisions))
+        out = np.empty((len(policies), len(self.family.objectives)))
+        start = 0
+        if not len(policies):
+            return out
+        if self.states_per_policy is None or self.workers == 1:
+            size = self.batch_size(len(policies))
+            out[:size], states = self.local.check(policies[:size])
+            self.states_per_policy = states / size
+            start = size
+            if progress:
+                progress(size)
+        batches = []
+        while start < len(policies):
+            size = self.batch_size(len(policies) - start)
+            batches.append((start, start + size))
+            start += size
+        if self.workers == 1 or len(batches) <= 1:
+            for first, last in batches:
+                out[first:last], states = self.local.check(policies[first:last])
+                if progress:
+                    progress(last - first)
+            return out
+        pool = self._executor()
+        futures = [
+            (first, last, pool.submit(_worker_check, self.task, policies[first:last])) for first, last in batches
+        ]
+        for first, last, future in futures:
+            out[first:last], _ = future.result()
+            if progress:
+                progress(last - first)
+        return out
+
+    def _executor(self) -> ProcessPoolExecutor:
+        if self._pool is None:
+            self._pool = spawn_pool(self.workers)
+        return self._pool
+
+    def close(self, abort: bool = False) -> None:
+        """Release the workers (``abort``: end them at once, on an error or Ctrl-C)."""
+        if self._pool is not None:
+            stop_pool(self._pool, abort)
+            self._pool = None
+
+    def __enter__(self) -> BatchStormEvaluator:
+        return self
+
+    def __exit__(self, kind, *exc) -> None:
+        self.close(abort=kind is not None)

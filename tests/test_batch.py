@@ -1,0 +1,267 @@
+"""The fast verification path (policy programs, many policies per Storm build) agrees with
+the reference (the augmented program, one build per policy) to 1e-12 on every case study,
+the tutorial's model, models with overlapping guards, deadlocks, left-out valuations and
+every objective shape, and on random maps (property-based)."""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import numpy as np
+import pytest
+import stormpy
+from conftest import toy_system
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from test_quotient import OBJECTIVES, STUCK, SYNCHRONISED, breaking_system
+
+from parley_core.augment import augment
+from parley_core.evaluate.batch import BatchChecker, BatchStormEvaluator, BatchTask
+from parley_core.evaluate.storm import StormEvaluator
+from parley_core.model import DecisionKind, Objective, Service
+from parley_core.prism import program as prism
+from parley_core.prism.policy import INDEX, policy_template, tree
+from parley_core.testing import family as make
+from parley_core.usermodel import system_from_file
+
+TUTORIAL = Path(__file__).resolve().parents[1] / "docs" / "tutorial"
+
+
+def agree(family, policies, workers: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Both paths' values of ``policies``; asserts they agree to 1e-12 (relative to the
+    value's size, at least 1) and are equally infinite."""
+    with BatchStormEvaluator(family, workers=workers) as fast, StormEvaluator(family, workers=1) as reference:
+        batch, single = fast.evaluate(policies), reference.evaluate(policies)
+    assert (np.isinf(batch) == np.isinf(single)).all()
+    finite = np.isfinite(single)
+    scale = np.maximum(1.0, np.abs(single[finite]))
+    assert (np.abs(batch[finite] - single[finite]) / scale).max(initial=0.0) <= 1e-12
+    return batch, single
+
+
+def sample(family, count: int, seed: int = 0) -> np.ndarray:
+    baselines = np.array([p.values for p in family.baseline_policies()], dtype=np.int64)
+    rows = family.random(np.random.default_rng(seed), count)
+    return np.vstack([baselines.reshape(-1, len(family.decisions)), rows])
+
+
+@pytest.mark.parametrize(
+    "case, assignments",
+    [
+        ("robot_grid", ["size=5", "seed=3"]),
+        ("turtlebot", []),
+        ("web_ids", []),
+        ("tas", []),
+    ],
+)
+def test_every_case_study_agrees_with_the_reference(case, assignments):
+    family = make(case, assignments)
+    agree(family, sample(family, 6))
+
+
+def test_the_tutorial_model_agrees_with_the_reference():
+    # the tutorial prunes: 2 of its 6 valuations are left out
+    system = system_from_file(TUTORIAL / "pump.prism", ["c=1..8"], ["est", "load"], TUTORIAL / "pump.pctl")
+    family = make(system, prune=True)
+    assert family.left_out
+    agree(family, sample(family, 10))
+
+
+def test_every_objective_shape_agrees_one_policy_per_program():
+    # unbounded rewards (finite, infinite, total) are checked one policy per program, with
+    # the reference's exact or relative-to-the-model precision
+    family = make(breaking_system(OBJECTIVES))
+    policies = np.array(list(itertools.product(*(d.service.values for d in family.decisions))))
+    with BatchStormEvaluator(family, workers=1) as fast:
+        assert fast.batch_size(len(policies)) == 1
+    batch, single = agree(family, policies)
+    assert np.isinf(single).any() and np.isfinite(single).any()
+
+
+def test_bounded_and_reachability_objectives_share_a_program():
+    objectives = {k: v for k, v in OBJECTIVES.items() if not k.startswith(("reward", "total"))}
+    family = make(breaking_system(objectives))
+    policies = np.array(list(itertools.product(*(d.service.values for d in family.decisions))))
+    with BatchStormEvaluator(family, workers=1) as fast:
+        fast.evaluate(policies[:4])
+        assert fast.batch_size(len(policies)) > 1
+    agree(family, policies)
+
+
+def test_synchronising_modules_and_deadlocks_agree():
+    synchronised = toy_system(
+        prism=SYNCHRONISED,
+        observation=("a",),
+        objectives=[
+            Objective(name="full", formula="P=? [F b=3]", direction="max"),
+            Objective(name="load", formula='R{"b"}=? [C<=6]', direction="min"),
+        ],
+    )
+    family = make(synchronised)
+    agree(family, np.array(list(itertools.product(range(1, 4), repeat=len(family.decisions)))))
+    stuck = toy_system(
+        prism=STUCK,
+        services=[Service(name="probe", constant="c", kind=DecisionKind.FREQUENCY, low=0, high=3)],
+        observation=("x",),
+        objectives=[
+            Objective(name="stuck", formula='P=? [F "deadlock"]', direction="min"),
+            Objective(name="soon", formula='P=? [F<=4 "deadlock"]', direction="min"),
+            Objective(name="mixed", formula='P=? [F ("deadlock" & x=1)]', direction="min"),
+        ],
+        baselines=[],
+    )
+    family = make(stuck)
+    agree(family, np.array(list(itertools.product(range(0, 4), repeat=len(family.decisions))))[::5])
+
+
+def test_left_out_valuations_disable_the_service_commands_there():
+    # a pruned family has no decisions at valuations no policy consults; the policy
+    # program must not enable the service's commands there either
+    family = make("turtlebot", prune=True)
+    assert family.left_out
+    template = policy_template(family)
+    assert template.has_kept
+    agree(family, sample(family, 8, seed=2))
+
+
+TWO_SERVICES = """dtmc
+const int c;
+const int r;
+module m
+  x : [0..4] init 0;
+  ok : bool init true;
+  [probe] x>=c & ok -> 0.8 : (x'=0) + 0.2 : (ok'=false);
+  [tick] x<c & ok -> (x'=min(x+1, 4));
+  [fix] !ok & x>=r -> (ok'=true) & (x'=r);
+  [wait] !ok & x<r -> 0.5 : (x'=min(x+1, 4)) + 0.5 : true;
+endmodule
+rewards "cost"
+  [probe] true : 1;
+  [fix] true : 3;
+endrewards
+"""
+
+
+def test_two_services_and_a_boolean_observation_agree():
+    system = toy_system(
+        prism=TWO_SERVICES,
+        services=[
+            Service(name="probe", constant="c", kind=DecisionKind.FREQUENCY, low=1, high=3),
+            Service(name="repair", constant="r", kind=DecisionKind.THRESHOLD, low=0, high=2),
+        ],
+        observation=("x", "ok"),
+        objectives=[
+            Objective(name="cost", formula='R{"cost"}=? [C<=12]', direction="min"),
+            Objective(name="down", formula="P=? [F<=10 !ok]", direction="min"),
+            Objective(name="up", formula="P=? [F ok & x=4]", direction="max"),
+        ],
+        baselines=[],
+    )
+    family = make(system)
+    assert len(family.decisions) == 2 * 10
+    agree(family, family.random(np.random.default_rng(4), 30))
+
+
+def test_storm_misreads_a_single_valued_global():
+    # why the policy index ranges over at least two values: with a global of range [0..0],
+    # Storm's initial state has the boolean ok false although it is declared init true. If
+    # this test fails, Storm has fixed it and the workaround in policy.py can go.
+    text = "dtmc\nglobal k : [0..0] init 0;\nmodule m\n ok : bool init true;\n [] true -> true;\nendmodule\n"
+    program = prism.parse_program(text)
+    options = stormpy.BuilderOptions()
+    options.set_build_state_valuations()
+    model = stormpy.build_model(program, options=options)
+    ok = program.expression_manager.get_variable("ok")
+    assert not model.state_valuations.get_boolean_value(model.initial_states[0], ok)
+
+
+def test_a_reachable_valuation_left_out_has_no_service_commands():
+    # augmented at phase=0 only, the toy has no probe or wait commands at phase=1 (a
+    # deadlock there); the policy program must say the same, or the values differ
+    system = toy_system()
+    family = augment(system, valuations=[(0,)])
+    assert family.left_out == ((1,),)
+    batch, single = agree(family, np.array([[1], [2], [3]]))
+    full = augment(system)
+    _, everywhere = agree(full, np.array([[1, 1], [2, 2], [3, 3]]))
+    assert np.abs(single - everywhere).max() > 1e-3
+
+
+def test_a_batch_is_the_disjoint_union_of_its_policies():
+    family = make("robot_grid", ["size=4", "seed=0"])
+    checker = BatchChecker(BatchTask.of(family))
+    policies = family.random(np.random.default_rng(5), 6)
+    together, states = checker.check(policies)
+    alone = [checker.check(row[None]) for row in policies]
+    assert states == sum(n for _, n in alone)
+    assert np.abs(together - np.vstack([v for v, _ in alone])).max() <= 1e-12
+    # the program names each policy's initial state by the policy index
+    program = prism.parse_program(checker.task.template.render(policies))
+    assert program.expression_manager.has_variable(INDEX)
+
+
+def test_workers_give_the_same_values():
+    family = make("robot_grid", ["size=4", "seed=1"])
+    policies = sample(family, 40, seed=3)
+    with BatchStormEvaluator(family, workers=1) as one, BatchStormEvaluator(family, workers=2) as two:
+        assert np.abs(one.evaluate(policies) - two.evaluate(policies)).max() <= 1e-12
+
+
+def test_the_decision_tree_picks_each_valuations_value():
+    table = np.array([[3, 3, 1], [2, -1, 2]])
+    text = tree(table, ["a", "b"], [0, 5], [False, False], "0")
+    for a, b in itertools.product(range(2), range(3)):
+        if table[a, b] < 0:
+            continue
+        assert _evaluate(text, {"a": a, "b": 5 + b}) == table[a, b]
+    assert tree(np.array([[4, -1], [-1, 4]]), ["a", "b"], [0, 0], [True, False], "0") == "4"
+    assert tree(np.array([-1, -1]), ["a"], [0], [False], "false") == "false"
+
+
+def _evaluate(text: str, values: dict[str, int]) -> int:
+    """A tree's value, read by a parser of its own small grammar: an integer, or
+    ``(name <= n ? A : B)``, or ``(name ? A : B)``."""
+    tokens = text.replace("(", " ( ").replace(")", " ) ").split()
+    position = 0
+
+    def take() -> str:
+        nonlocal position
+        position += 1
+        return tokens[position - 1]
+
+    def expression() -> int:
+        token = take()
+        if token != "(":
+            return int(token)
+        name = take()
+        if tokens[position] == "<=":
+            take()
+            holds = values[name] <= int(take())
+        else:
+            holds = bool(values[name])
+        assert take() == "?"
+        yes = expression()
+        assert take() == ":"
+        no = expression()
+        assert take() == ")"
+        return yes if holds else no
+
+    return expression()
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    size=st.integers(3, 6),
+    seed=st.integers(0, 50),
+    p=st.sampled_from([0.0, 0.01, 0.1]),
+    horizon=st.integers(5, 60),
+    data=st.data(),
+)
+def test_property_batch_equals_reference_on_random_maps_and_policies(size, seed, p, horizon, data):
+    family = make("robot_grid", [f"size={size}", f"seed={seed}", f"p={p}", f"horizon={horizon}"])
+    count = data.draw(st.integers(1, 6))
+    rows = np.array(
+        [[data.draw(st.integers(d.service.low, d.service.high)) for d in family.decisions] for _ in range(count)]
+    )
+    agree(family, rows)
