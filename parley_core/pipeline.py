@@ -26,7 +26,7 @@ from parley_core.evaluate.cache import CachingEvaluator
 from parley_core.model import Family, Front, Policy, SystemModel, Valued
 from parley_core.progress import NullReporter, Reporter
 from parley_core.search import SearchResult, SearchSettings, search
-from parley_core.verify import Verification, by_search, check_with_storm, not_checked
+from parley_core.verify import Verification, VerifyPath, by_search, check_with_storm, not_checked
 
 if TYPE_CHECKING:
     from parley_core.bound import Bound
@@ -132,6 +132,7 @@ def run(
     verify: bool = True,
     bound: str = "pareto",
     bound_time: float | None = None,
+    verify_with: str | VerifyPath = VerifyPath.BATCH,
 ) -> RunResult:
     """Baselines, search, verification, bound; returns everything the report needs.
 
@@ -142,6 +143,7 @@ def run(
     most ``bound_time`` seconds (None: until the front is proven exact), whose policies join
     the front and whose open sub-families make the bound; "none" skips it.
 
+    ``verify_with``: how Storm re-checks the front (:class:`parley_core.verify.VerifyPath`).
     ``verify=False`` skips re-checking the front with Storm when another evaluator searched
     (campaigns may choose it for time); the result then says so (``verification.by``).
     """
@@ -213,6 +215,7 @@ def run(
                 reporter,
                 names=[f"baseline {p.name}" for p in baseline.policies] + [None] * len(candidates),
                 baselines=len(base_rows),
+                path=verify_with,
             )
             baseline = Valued(
                 objectives=family.objectives, policies=baseline.policies, values=checked[: len(base_rows)]

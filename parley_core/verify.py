@@ -3,8 +3,8 @@
 A front found with the quotient evaluator is re-checked by Storm (sound value iteration at
 1e-12); the result records the largest difference between the two, and Storm's values
 replace the search's. Storm checks *policy programs* by default, many policies per build
-(:mod:`parley_core.evaluate.batch`, :data:`Path.BATCH`), or the augmented program one
-policy at a time (the reference, :data:`Path.REFERENCE`); the result says which. A front found with the Storm
+(:mod:`parley_core.evaluate.batch`, :data:`VerifyPath.BATCH`), or the augmented program one
+policy at a time (the reference, :data:`VerifyPath.REFERENCE`); the result says which. A front found with the Storm
 evaluator is Storm's already. Campaigns may skip the re-check for time and say so
 (:attr:`Verified.NOT_CHECKED`), and re-check later (``parley experiment verify``).
 """
@@ -25,7 +25,7 @@ TOLERANCE = 1e-9
 """How far the search's evaluator may be from Storm: 1e-9 times the value's size (at least 1)."""
 
 
-class Path(enum.Enum):
+class VerifyPath(enum.Enum):
     """How Storm was given the policies (the value is what run files record)."""
 
     BATCH = "policy programs"
@@ -35,8 +35,8 @@ class Path(enum.Enum):
     """The augmented model with the decision constants defined, one policy per build."""
 
     @classmethod
-    def of(cls, path: Path | str) -> Path:
-        if isinstance(path, Path):
+    def of(cls, path: VerifyPath | str) -> VerifyPath:
+        if isinstance(path, VerifyPath):
             return path
         names = {"batch": cls.BATCH, "reference": cls.REFERENCE}
         if path in names:
@@ -71,7 +71,7 @@ class Verification:
     baselines: int = 0
     """Baselines re-checked besides the front's policies."""
     path: str = ""
-    """How Storm was given the policies (a :class:`Path` value; empty when Storm did not re-check)."""
+    """How Storm was given the policies (a :class:`VerifyPath` value; empty when Storm did not re-check)."""
 
     def to_json(self) -> dict[str, object]:
         return {
@@ -135,7 +135,7 @@ def check_with_storm(
     reporter: Reporter | None = None,
     names: list[str | None] | None = None,
     baselines: int = 0,
-    path: Path | str = Path.BATCH,
+    path: VerifyPath | str = VerifyPath.BATCH,
 ) -> tuple[Verification, np.ndarray]:
     """Storm's values of ``policies``, and how far they are from ``values`` (the search's).
 
@@ -143,13 +143,13 @@ def check_with_storm(
     :class:`~parley_core.errors.EvaluatorDisagreement` names the policy, the objective and
     both values. ``names`` name the policies in that message (None: by their decisions);
     the first ``baselines`` rows are the baselines, counted apart in the result. ``path``:
-    how Storm gets the policies (:class:`Path`); a family read back from files, which has no
+    how Storm gets the policies (:class:`VerifyPath`); a family read back from files, which has no
     original model to write policy programs from, takes the reference path."""
     reporter = reporter or NullReporter()
     start = time.perf_counter()
-    path = Path.of(path)
+    path = VerifyPath.of(path)
     if family.system is None:
-        path = Path.REFERENCE
+        path = VerifyPath.REFERENCE
     with storm_verifier(family, path, workers) as storm:
         reporter.stage("verify with Storm", len(policies))
         checked = storm.evaluate(policies, progress=reporter.advance)
@@ -177,9 +177,9 @@ def check_with_storm(
     return verification, checked
 
 
-def storm_verifier(family: Family, path: Path | str = Path.BATCH, workers: int | None = None):
+def storm_verifier(family: Family, path: VerifyPath | str = VerifyPath.BATCH, workers: int | None = None):
     """The Storm evaluator of a verification path."""
-    if Path.of(path) is Path.BATCH:
+    if VerifyPath.of(path) is VerifyPath.BATCH:
         from parley_core.evaluate.batch import BatchStormEvaluator
 
         return BatchStormEvaluator(family, workers=workers)

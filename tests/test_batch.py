@@ -209,14 +209,15 @@ def test_workers_give_the_same_values():
 
 
 def test_the_decision_tree_picks_each_valuations_value():
-    table = np.array([[3, 3, 1], [2, -1, 2]])
-    text = tree(table, ["a", "b"], [0, 5], [False, False], "0")
+    # negative decisions are values like any other (PRISM's brp with MAX=-2..3)
+    table = np.array([[3, 3, -1], [2, 0, -2]])
+    known = np.array([[True, True, True], [True, False, True]])
+    text = tree(table, ["a", "b"], [0, 5], [False, False], "0", known)
     for a, b in itertools.product(range(2), range(3)):
-        if table[a, b] < 0:
-            continue
-        assert _evaluate(text, {"a": a, "b": 5 + b}) == table[a, b]
-    assert tree(np.array([[4, -1], [-1, 4]]), ["a", "b"], [0, 0], [True, False], "0") == "4"
-    assert tree(np.array([-1, -1]), ["a"], [0], [False], "false") == "false"
+        if known[a, b]:
+            assert _evaluate(text, {"a": a, "b": 5 + b}) == table[a, b]
+    assert tree(np.array([[4, 0], [0, 4]]), ["a", "b"], [0, 0], [True, False], "0", np.eye(2, dtype=bool)) == "4"
+    assert tree(np.array([0, 0]), ["a"], [0], [False], "false", np.array([False, False])) == "false"
 
 
 def _evaluate(text: str, values: dict[str, int]) -> int:

@@ -175,3 +175,23 @@ def test_a_short_synthesis_reports_storms_values(foreign, spec, tmp_path):
             assert math.isclose(value, checked, rel_tol=TOLERANCE, abs_tol=TOLERANCE) or value == checked, (
                 f"{spec.folder}: {policy['policy']} {name}: front.csv {value!r}, Storm {checked!r}"
             )
+
+
+@pytest.mark.parametrize("spec", MODELS, ids=lambda s: f"{s.folder}/{s.model}")
+def test_policy_programs_agree_with_the_augmented_model(foreign, spec, tmp_path):
+    # the default verification path (policy programs) against the reference (the augmented
+    # program, one build per policy): both Storm's, to 1e-12
+    from parley_core.evaluate.batch import BatchStormEvaluator
+    from parley_core.evaluate.storm import StormEvaluator
+
+    model, properties = _paths(foreign, spec, tmp_path)
+    system = system_from_file(model, spec.agreement or spec.decisions, list(spec.observe), properties)
+    family = make_family(system, prune=True)
+    baselines = family.baseline_policies()[:3]
+    rows = np.vstack([np.array([p.values for p in baselines]), family.random(np.random.default_rng(8), 12)]).astype(
+        np.int64
+    )
+    with BatchStormEvaluator(family, workers=1) as fast, StormEvaluator(family, workers=1) as reference:
+        batch, single = fast.evaluate(rows), reference.evaluate(rows)
+    _, relative = differences(batch, single)
+    assert relative.max() <= 1e-12, f"{spec.folder}/{spec.model}: {batch.tolist()} against {single.tolist()}"

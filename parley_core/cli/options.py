@@ -89,4 +89,13 @@ BoundTimeOption = Annotated[
     float,
     typer.Option("--bound-time", min=0.001, help="With --bound refine: stop branch and bound after this many seconds."),
 ]
+VerifyWithOption = Annotated[
+    str,
+    typer.Option(
+        "--verify-with",
+        help="batch (default): Storm checks policy programs, the original model with the decisions as a formula, "
+        "several policies per build; reference: Storm checks the augmented model, one policy per build (slower; "
+        "the path the tests compare with).",
+    ),
+]
 OutOption = Annotated[Path | None, typer.Option(help="Run directory (default: runs/NAME-TIMESTAMP).")]

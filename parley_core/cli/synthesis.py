@@ -31,6 +31,7 @@ from parley_core.cli.options import (
     SeedOption,
     SetOption,
     TimeLimitOption,
+    VerifyWithOption,
     WorkersOption,
 )
 from parley_core.errors import OptionError
@@ -55,6 +56,7 @@ def run_command(
     workers: WorkersOption = None,
     bound: BoundOption = "pareto",
     bound_time: BoundTimeOption = 60.0,
+    verify_with: VerifyWithOption = "batch",
 ) -> None:
     """Synthesize a URC: search for Pareto-optimal policies, verify them with Storm, write a run directory."""
     settings = search_settings(
@@ -67,7 +69,15 @@ def run_command(
     )
     out = out or Path("runs") / f"{case}-{time.strftime('%Y%m%d-%H%M%S')}"
     _synthesize(
-        lambda reporter: prepare_case(case, set_, reporter), settings, out, force, evaluator, workers, bound, bound_time
+        lambda reporter: prepare_case(case, set_, reporter),
+        settings,
+        out,
+        force,
+        evaluator,
+        workers,
+        bound,
+        bound_time,
+        verify_with,
     )
 
 
@@ -134,6 +144,7 @@ def synthesize_command(
     workers: WorkersOption = None,
     bound: BoundOption = "pareto",
     bound_time: BoundTimeOption = 60.0,
+    verify_with: VerifyWithOption = "batch",
 ) -> None:
     """Synthesize a URC for your own PRISM model: the same pipeline and run directory as `parley run`."""
     from parley_core.pipeline import prepare
@@ -153,7 +164,7 @@ def synthesize_command(
         constraint=constraint,
     )
     out = out or Path("runs") / f"{model.stem}-{time.strftime('%Y%m%d-%H%M%S')}"
-    _synthesize(prepare_with, settings, out, force, evaluator, workers, bound, bound_time)
+    _synthesize(prepare_with, settings, out, force, evaluator, workers, bound, bound_time, verify_with)
 
 
 def _synthesize(
@@ -165,13 +176,15 @@ def _synthesize(
     workers: int | None,
     bound: str = "pareto",
     bound_time: float | None = None,
+    verify_with: str = "batch",
 ) -> None:
     """Prepare, search, verify, write and print a run (shared by `run` and `synthesize`)."""
     from parley_core.pipeline import run
     from parley_core.report import PLOT_ERROR, check_output, summary, write_run
-    from parley_core.verify import TOLERANCE, Verified
+    from parley_core.verify import TOLERANCE, Verified, VerifyPath
 
     kind = EvaluatorKind.of(evaluator)
+    path = VerifyPath.of(verify_with)
     if bound not in ("pareto", "ideal", "refine", "none"):
         raise OptionError(f"unknown --bound {bound!r}; valid: pareto, ideal, refine, none")
     console = Console()
@@ -179,7 +192,14 @@ def _synthesize(
     with RichReporter(stderr()) as reporter:
         prepared = prepare_with(reporter)
         result = run(
-            prepared, settings, evaluator=kind, workers=workers, reporter=reporter, bound=bound, bound_time=bound_time
+            prepared,
+            settings,
+            evaluator=kind,
+            workers=workers,
+            reporter=reporter,
+            bound=bound,
+            bound_time=bound_time,
+            verify_with=path,
         )
         reporter.stage("write report")
         written = write_run(result, out, force=force)
@@ -239,7 +259,8 @@ def _synthesize(
     verification = result.verification
     if verification.by is Verified.STORM_RECHECK:
         console.print(
-            f"every front policy and baseline re-checked by Storm: largest difference from the {kind.value} "
+            f"every front policy and baseline re-checked by Storm ({verification.path}, "
+            f"{verification.seconds:.1f} s): largest difference from the {kind.value} "
             f"evaluator {verification.max_difference:.1e} (relative {verification.max_relative_difference:.1e}, "
             f"within the tolerance {TOLERANCE:g})"
         )

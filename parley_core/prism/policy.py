@@ -75,9 +75,9 @@ class PolicyTemplate:
         lines = []
         for constant, columns, fill in zip(self.constants, self.positions, self.fills):
             index = np.asarray(columns, dtype=np.int64)
-            table = np.where(index >= 0, policies[:, np.maximum(index, 0)], -1)  # -1: no decision here
-            table = table.reshape((len(policies), *shape))
-            lines.append(f"formula {constant} = {tree(table, names, lows, booleans, str(fill))};")
+            table = policies[:, np.maximum(index, 0)].reshape((len(policies), *shape))
+            known = np.broadcast_to((index >= 0).reshape(shape), table.shape)  # False: no decision here
+            lines.append(f"formula {constant} = {tree(table, names, lows, booleans, str(fill), known)};")
         if self.has_kept:
             kept = (np.asarray(self.positions[0]) >= 0).reshape(shape).astype(np.int64)
             lines.append(f"formula {KEPT} = {tree(kept, names[1:], lows[1:], booleans[1:], 'false')};")
@@ -114,11 +114,14 @@ def policy_template(family: Family) -> PolicyTemplate:
     declarations[first] = "\n".join(stand_ins)
     spliced = prism.splice(program, modules=rewritten.modules, constants=declarations)
     lines = _with_initial_construct(prism.parse_program(spliced, origin=f"the policy program of {origin}")).split("\n")
-    for line in stand_ins:
-        if lines.count(line) != 1:
-            raise RuntimeError(f"{line!r} is not printed exactly once in the policy program")
-    lines[lines.index(stand_ins[0])] = _FORMULAS
-    text = "\n".join(line for line in lines if line not in stand_ins)
+    names = [*service_vars, *([KEPT] if has_kept else [])]
+    places = {name: [i for i, line in enumerate(lines) if line.startswith(f"formula {name} = ")] for name in names}
+    for name, found in places.items():
+        if len(found) != 1:
+            raise RuntimeError(f"formula {name} is not printed exactly once in the policy program")
+    lines[places[first][0]] = _FORMULAS
+    dropped = {found[0] for name, found in places.items() if name != first}
+    text = "\n".join(line for i, line in enumerate(lines) if i not in dropped)
     domains = tuple(
         (domain.start, domain.stop - 1, prism.is_boolean(program, name))
         for name, domain in zip(system.observation, rewrite.observation_domains(program, system))
@@ -181,10 +184,18 @@ _MIXED = object()
 """A subtree whose values differ."""
 
 
-def tree(table: np.ndarray, names: Sequence[str], lows: Sequence[int], booleans: Sequence[bool], fill: str) -> str:
+def tree(
+    table: np.ndarray,
+    names: Sequence[str],
+    lows: Sequence[int],
+    booleans: Sequence[bool],
+    fill: str,
+    known: np.ndarray | None = None,
+) -> str:
     """A balanced if-then-else tree over the variables ``names`` (one per dimension of
     ``table``, whose index 0 is the value ``lows[i]``) with ``table``'s values at its leaves.
-    -1 is "no value here" and matches any value (``fill`` where nothing is known); a subtree
+    Where ``known`` (same shape) is False there is no value, which matches any value (``fill``
+    where nothing is known); a subtree
     whose known values agree is that value, with no test."""
     boolean_leaves = fill in ("true", "false")
 
@@ -197,7 +208,7 @@ def tree(table: np.ndarray, names: Sequence[str], lows: Sequence[int], booleans:
         """The text of a subtree and its value: an int when every known value is that
         int, None when nothing is known, _MIXED otherwise."""
         if depth == len(names):
-            return (fill, None) if values < 0 else (leaf(values), values)
+            return (fill, None) if values is None else (leaf(values), values)
         name, low, boolean = names[depth], lows[depth], booleans[depth]
 
         def span(first: int, last: int) -> tuple[str, object]:
@@ -218,4 +229,7 @@ def tree(table: np.ndarray, names: Sequence[str], lows: Sequence[int], booleans:
 
         return span(0, len(values) - 1)
 
-    return node(np.asarray(table).tolist(), 0)[0]
+    table = np.asarray(table, dtype=np.int64)
+    mask = np.ones(table.shape, dtype=bool) if known is None else np.asarray(known, dtype=bool)
+    values = np.where(mask, table, None).tolist() if not mask.all() else table.tolist()
+    return node(values, 0)[0]
