@@ -104,12 +104,20 @@ _CHECKERS: dict[BatchTask, BatchChecker] = {}
 """Per worker process: the checker of each task seen (a cache, filled by _worker_check)."""
 
 
-def _worker_check(task: BatchTask, policies: np.ndarray) -> tuple[np.ndarray, int]:
+def _checker(task: BatchTask) -> BatchChecker:
     checker = _CHECKERS.get(task)
     if checker is None:
         _CHECKERS.clear()
         checker = _CHECKERS[task] = BatchChecker(task)
-    return checker.check(policies)
+    return checker
+
+
+def _worker_check(task: BatchTask, policies: np.ndarray) -> tuple[np.ndarray, int]:
+    return _checker(task).check(policies)
+
+
+def _worker_ready(task: BatchTask) -> None:
+    _checker(task)
 
 
 class BatchStormEvaluator:
@@ -143,6 +151,11 @@ class BatchStormEvaluator:
         start = 0
         if not len(policies):
             return out
+        parallel = self.workers > 1 and len(policies) > FIRST_BATCH + 1
+        warm: list = []
+        if parallel and self._pool is None:
+            # the workers start (import Storm, parse the template) while the first batch runs here
+            warm = [self._executor().submit(_worker_ready, self.task) for _ in range(self.workers)]
         if self.states_per_policy is None or self.workers == 1:
             size = self.batch_size(len(policies))
             out[:size], states = self.local.check(policies[:size])
@@ -155,13 +168,15 @@ class BatchStormEvaluator:
             size = self.batch_size(len(policies) - start)
             batches.append((start, start + size))
             start += size
-        if self.workers == 1 or len(batches) <= 1:
+        if not parallel or len(batches) <= 1:
             for first, last in batches:
                 out[first:last], states = self.local.check(policies[first:last])
                 if progress:
                     progress(last - first)
             return out
         pool = self._executor()
+        for ready in warm:
+            ready.result()
         futures = [
             (first, last, pool.submit(_worker_check, self.task, policies[first:last])) for first, last in batches
         ]

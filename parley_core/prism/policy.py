@@ -231,5 +231,7 @@ def tree(
 
     table = np.asarray(table, dtype=np.int64)
     mask = np.ones(table.shape, dtype=bool) if known is None else np.asarray(known, dtype=bool)
-    values = np.where(mask, table, None).tolist() if not mask.all() else table.tolist()
+    values = table.astype(object)
+    values[~mask] = None
+    values = values.tolist()
     return node(values, 0)[0]
