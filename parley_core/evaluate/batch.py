@@ -2,22 +2,23 @@
 
 Each batch of policies is written as one *policy program* (:mod:`parley_core.prism.policy`):
 the original model with each service constant a formula of the observation variables and
-the policy index, one initial state per policy. Storm parses, builds and checks it like any
-program, with the reference evaluator's solver settings (:func:`storm.check_instance`); the
-value at the initial state with ``parley_policy = i`` is policy ``i``'s.
+the policy index, and a dispatch state that starts each policy. Storm parses, builds and
+checks it like any program, with the reference evaluator's solver settings
+(:func:`storm.check_instance`); the value at the state where ``parley_policy = i`` starts
+is policy ``i``'s.
 
 It shares nothing with the quotient evaluator (no quotient, no choice consistency, no UMB
 export), and nothing with the reference evaluator but the solver settings: the augmented
 program is not read at all, so a defect in augmentation would show up as a disagreement.
-It is 5 to 25 times faster than the reference (``benchmarks/verify.py``), because Storm's
+It is 2 to 25 times faster than the reference (``benchmarks/verify.py``), because Storm's
 builder evaluates one command instead of one copy per observation valuation, and because one
 build serves many policies.
 
 Families whose objectives include an unbounded reward (``R=? [F ...]``, ``R=? [C]``) are
 checked one policy per program: the reference solves those to a precision relative to the
 largest value of the model, which a batch would share between its policies, or exactly
-when the model is small. So are objectives that mention the ``"init"`` label, which a batch
-with several initial states would change.
+when the model is small. So are objectives that mention the ``"init"`` label, which the
+dispatch state of a batch would carry instead of the policies' starts.
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ BATCH_STATES = 400_000
 
 FIRST_BATCH = 4
 MAX_BATCH = 64
+SHARES = 4
 
 
 @frozen(kw_only=True)
@@ -84,20 +86,40 @@ class BatchChecker:
         program = self._program(policies)
         properties = prism.parse_properties(self.task.formulas, program, origin="objective")
         model, rows = check_instance(
-            program, properties, self.task.objective_names, self.unbounded, self.environment, valuations=True
+            program,
+            properties,
+            self.task.objective_names,
+            self.unbounded,
+            self.environment,
+            valuations=len(policies) > 1,
+            at=lambda model: starts(model, len(policies)),
         )
-        if len(rows) != len(policies):
-            raise ModelError(
-                f"the policy program of {len(policies)} policies has {len(rows)} initial states; "
-                "parley needs exactly one per policy (does the model have exactly one initial state?)"
-            )
         variable = program.expression_manager.get_variable(INDEX)
         out = np.full((len(policies), len(self.task.formulas)), np.nan)
-        for state, row in zip(model.initial_states, rows):
-            out[model.state_valuations.get_int64_value(state, variable)] = row
+        for state, row in zip(starts(model, len(policies)), rows):
+            index = model.state_valuations.get_int64_value(state, variable) if len(policies) > 1 else 0
+            out[index] = row
         if np.isnan(out).any():
             raise RuntimeError("a policy of the batch has no initial state of its own")
-        return out, int(model.nr_states)
+        # the dispatch state is not a policy's: without it, the batch's states are the policies'
+        return out, int(model.nr_states) - (len(policies) > 1)
+
+
+def starts(model, count: int) -> list[int]:
+    """The states where the policies of a batch of ``count`` start: the initial state of a
+    single policy, else the successors of the dispatch state (the only initial state)."""
+    if len(model.initial_states) != 1:
+        raise ModelError(
+            f"the policy program has {len(model.initial_states)} initial states; parley needs exactly one "
+            "(every variable needs one initial value)"
+        )
+    initial = model.initial_states[0]
+    if count == 1:
+        return [initial]
+    successors = [entry.column for entry in model.transition_matrix.get_row(initial)]
+    if len(successors) != count:
+        raise RuntimeError(f"the dispatch state of {count} policies has {len(successors)} successors")
+    return successors
 
 
 _CHECKERS: dict[BatchTask, BatchChecker] = {}
@@ -141,8 +163,11 @@ class BatchStormEvaluator:
         if self.states_per_policy is None:
             return min(FIRST_BATCH, remaining)
         size = int(BATCH_STATES / max(1.0, self.states_per_policy))
-        # at least two batches per worker, so that neither waits for the other at the end
-        share = math.ceil(remaining / (2 * self.workers))
+        # At least SHARES batches, so that two workers finish together. Not a function of the
+        # worker count: a policy's value depends on its batch in the last bits (the solver
+        # stops when the whole batch has converged), and a run's values should not depend
+        # on --workers.
+        share = math.ceil(remaining / SHARES)
         return max(1, min(size, MAX_BATCH, share))
 
     def evaluate(self, policies: np.ndarray, progress: Progress | None = None) -> np.ndarray:
@@ -156,7 +181,7 @@ class BatchStormEvaluator:
         if parallel and self._pool is None:
             # the workers start (import Storm, parse the template) while the first batch runs here
             warm = [self._executor().submit(_worker_ready, self.task) for _ in range(self.workers)]
-        if self.states_per_policy is None or self.workers == 1:
+        if self.states_per_policy is None:
             size = self.batch_size(len(policies))
             out[:size], states = self.local.check(policies[:size])
             self.states_per_policy = states / size

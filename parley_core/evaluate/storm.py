@@ -6,6 +6,7 @@ one by sound value iteration with the precision chosen per property shape
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
@@ -87,10 +88,18 @@ def check_values(model, prop, relative_environment: stormpy.Environment, states)
 
 
 def check_instance(
-    instance, properties, objective_names, unbounded: list[bool], environment, *, valuations: bool = False
+    instance,
+    properties,
+    objective_names,
+    unbounded: list[bool],
+    environment,
+    *,
+    valuations: bool = False,
+    at: Callable[[Any], list[int]] | None = None,
 ) -> tuple[Any, list[list[float]]]:
     """Build a program whose constants are all defined and check every property at each of
-    its initial states: the model and ``values[state][objective]``.
+    its initial states (or at the states ``at(model)`` names): the model and
+    ``values[state][objective]``.
 
     A model of at most :data:`EXACT_STATES` states with one initial state has its unbounded
     rewards checked in exact rational arithmetic. ``valuations``: build the state valuations
@@ -105,7 +114,7 @@ def check_instance(
             exact = stormpy.build_model[stormpy.Rational](instance, properties)
     except RuntimeError as exc:
         raise ModelError(f"Storm cannot build the model: {prism.storm_message(exc)}") from None
-    initial = list(model.initial_states)
+    initial = list(model.initial_states) if at is None else at(model)
     columns = []
     for prop, name, is_unbounded in zip(properties, objective_names, unbounded):
         try:

@@ -16,10 +16,16 @@ builds exactly the DTMC it builds from the augmented program with the decisions 
 - bounds that use a service constant are widened the same way (:func:`rewrite.widen_bounds`).
 
 Several policies share one program (a *batch*): a global variable ``parley_policy`` numbers
-them, the trees branch on it first, and the ``init`` construct makes one initial state per
-policy, so one parse, one Storm build and one solver run give the values of them all. The
-variable never changes, so the states of different policies never meet: the model is the
-disjoint union of the policies' DTMCs, and each initial state's value is its policy's.
+them, and the trees branch on it first. The program starts in a dispatch state
+(``parley_policy = K``, every other variable at its initial value) whose one command, in a
+module of its own, moves to ``parley_policy = i`` for each policy ``i``; every other command
+is disabled there (its guard gets ``parley_policy < K``). So one parse, one Storm build and
+one solver run give the values of them all. The variable never changes after that, so the
+states of different policies never meet: apart from the dispatch state the model is the
+disjoint union of the policies' DTMCs, and the value at policy ``i``'s start is policy
+``i``'s. One initial state, not one per policy through an ``init`` construct: Storm
+enumerates those with Z3, in an order that depends on the process's history, and the
+numbering of the states, and so the last bits of the values, with it.
 """
 
 from __future__ import annotations
@@ -33,6 +39,7 @@ from parley_core.errors import ModelError
 from parley_core.model import Family
 from parley_core.prism import program as prism
 from parley_core.prism import rewrite
+from parley_core.prism.writer import command_line
 
 INDEX = "parley_policy"
 """The global variable that numbers the policies of a batch."""
@@ -41,8 +48,12 @@ KEPT = "parley_kept"
 """The formula that is true at the observation valuations that have decisions."""
 
 _FORMULAS = "// __parley_formulas__"
-_RANGE = "__PARLEY_LAST__"
 _TOP = "__PARLEY_TOP__"
+_START = "__PARLEY_START__"
+_SPLIT = "__PARLEY_SPLIT__"
+
+DISPATCH = "parley_dispatch"
+"""The module whose one command starts each policy of a batch."""
 
 
 @frozen(kw_only=True)
@@ -82,11 +93,17 @@ class PolicyTemplate:
             kept = (np.asarray(self.positions[0]) >= 0).reshape(shape).astype(np.int64)
             lines.append(f"formula {KEPT} = {tree(kept, names[1:], lows[1:], booleans[1:], 'false')};")
         text = self.text.replace(_FORMULAS, "\n".join(lines), 1)
-        # The variable's range has at least two values: Storm 2.0 (stormpy 2.0.0) sets a wrong
-        # initial value for a boolean declared after a global variable of range [0..0]
-        # (tests/test_batch.py, test_storm_misreads_a_single_valued_global).
-        text = text.replace(_TOP, str(max(1, len(policies) - 1)))
-        return text.replace(_RANGE, str(len(policies) - 1))
+        # One policy starts at parley_policy = 0 (the dispatch value 1 is never reached: the
+        # index ranges over two values, because Storm 2.0 (stormpy 2.0.0) sets a wrong
+        # initial value for a boolean declared after a global variable of range [0..0],
+        # tests/test_batch.py, test_storm_misreads_a_single_valued_global). Several start in
+        # the dispatch state parley_policy = K, whose one command moves to each policy's
+        # initial state with probability 1/K.
+        count = len(policies)
+        top = max(1, count)
+        split = " + ".join(f"1/{count} : ({INDEX}'={i})" for i in range(count)) if count > 1 else f"({INDEX}'=0)"
+        text = text.replace(_TOP, str(top)).replace(_SPLIT, split)
+        return text.replace(_START, str(top if count > 1 else 0))
 
 
 def policy_template(family: Family) -> PolicyTemplate:
@@ -113,7 +130,7 @@ def policy_template(family: Family) -> PolicyTemplate:
     declarations = {name: "" for name in service_vars}
     declarations[first] = "\n".join(stand_ins)
     spliced = prism.splice(program, modules=rewritten.modules, constants=declarations)
-    lines = _with_initial_construct(prism.parse_program(spliced, origin=f"the policy program of {origin}")).split("\n")
+    lines = _with_dispatch(prism.parse_program(spliced, origin=f"the policy program of {origin}")).split("\n")
     names = [*service_vars, *([KEPT] if has_kept else [])]
     places = {name: [i for i, line in enumerate(lines) if line.startswith(f"formula {name} = ")] for name in names}
     for name, found in places.items():
@@ -143,41 +160,27 @@ def policy_template(family: Family) -> PolicyTemplate:
     )
 
 
-def _with_initial_construct(program) -> str:
-    """Storm's printing of ``program`` with every initial value moved into an ``init``
-    construct that also leaves :data:`INDEX` free in ``[0.._RANGE]``."""
+def _with_dispatch(program) -> str:
+    """Storm's printing of ``program`` with :data:`INDEX` declared, every command's guard
+    conjoined with ``INDEX < _TOP``, and a module whose one command leaves the dispatch
+    state ``INDEX = _TOP`` for each policy's own initial state."""
     modules = {}
-    parts = [f"0 <= {INDEX}", f"{INDEX} <= {_RANGE}"]
     for module in program.modules:
-        variables = list(module.integer_variables) + list(module.boolean_variables)
-        modules[module.name] = prism.module_with_commands(module, {}, {v.name: _without_init(v) for v in variables})
-        parts += [_initial_value(v) for v in variables]
-    text = prism.splice(program, modules=modules)
-    lines = text.split("\n")
-    for variable in list(program.global_integer_variables) + list(program.global_boolean_variables):
-        old = f"global {prism.variable_line(variable)}"
-        found = [i for i, line in enumerate(lines) if line == old]
-        if len(found) != 1:
-            raise RuntimeError(f"global variable {variable.name} is not printed exactly once as {old!r}")
-        lines[found[0]] = f"global {_without_init(variable)}"
-        parts.append(_initial_value(variable))
-    lines.insert(1, f"global {INDEX} : [0..{_TOP}];")
-    return "\n".join(lines) + "\ninit\n\t" + "\n\t& ".join(parts) + "\nendinit\n"
-
-
-def _without_init(variable) -> str:
-    line = prism.variable_line(variable)
-    head, sep, _ = line.rpartition(" init ")
-    if not sep:
-        raise RuntimeError(f"cannot read the declaration {line!r}")
-    return head + ";"
-
-
-def _initial_value(variable) -> str:
-    value = variable.initial_value_expression
-    if not hasattr(variable, "lower_bound_expression"):
-        return f"({variable.name} = {value})"
-    return f"({variable.name} = {value})"
+        replacements = {
+            command.global_index: [
+                command_line(
+                    command.action_name,
+                    f"({INDEX} < {_TOP}) & ({command.guard_expression})",
+                    [str(update) for update in command.updates],
+                )
+            ]
+            for command in module.commands
+        }
+        modules[module.name] = prism.module_with_commands(module, replacements)
+    lines = prism.splice(program, modules=modules).split("\n")
+    lines.insert(1, f"global {INDEX} : [0..{_TOP}] init {_START};")
+    dispatch = f"module {DISPATCH}\n\t[] ({INDEX} = {_TOP}) -> {_SPLIT};\nendmodule\n"
+    return "\n".join(lines) + "\n" + dispatch
 
 
 _MIXED = object()
