@@ -30,7 +30,7 @@ import numpy as np
 from attrs import frozen
 
 from parley_core.errors import ModelError
-from parley_core.evaluate.pool import default_workers, spawn_pool, stop_pool
+from parley_core.evaluate.pool import PoolOwner, default_workers
 from parley_core.evaluate.storm import check_instance, reference_environment, unbounded_reward
 from parley_core.model import Family
 from parley_core.prism import program as prism
@@ -146,7 +146,7 @@ def _worker_ready(task: BatchTask) -> None:
     _checker(task)
 
 
-class BatchStormEvaluator:
+class BatchStormEvaluator(PoolOwner):
     """Evaluate policies with Storm in batches, in this process or in ``workers`` processes."""
 
     name = "storm"
@@ -224,20 +224,3 @@ class BatchStormEvaluator:
             if progress:
                 progress(last - first)
         return out
-
-    def _executor(self) -> ProcessPoolExecutor:
-        if self._pool is None:
-            self._pool = spawn_pool(self.workers)
-        return self._pool
-
-    def close(self, abort: bool = False) -> None:
-        """Release the workers (``abort``: end them at once, on an error or Ctrl-C)."""
-        if self._pool is not None:
-            stop_pool(self._pool, abort)
-            self._pool = None
-
-    def __enter__(self) -> BatchStormEvaluator:
-        return self
-
-    def __exit__(self, kind, *exc) -> None:
-        self.close(abort=kind is not None)

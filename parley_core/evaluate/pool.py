@@ -59,3 +59,28 @@ def spawn_pool(
         initializer=_start,
         initargs=(initializer, initargs, os.getpid()),
     )
+
+
+class PoolOwner:
+    """An evaluator's worker pool, started on first use (:meth:`_executor`), and its release:
+    ``close`` and use as a context manager (an exception on its way up ends the workers at once)."""
+
+    workers: int
+    _pool: ProcessPoolExecutor | None = None
+
+    def _executor(self) -> ProcessPoolExecutor:
+        if self._pool is None:
+            self._pool = spawn_pool(self.workers)
+        return self._pool
+
+    def close(self, abort: bool = False) -> None:
+        """Release the workers (``abort``: end them at once, on an error or Ctrl-C)."""
+        if self._pool is not None:
+            stop_pool(self._pool, abort)
+            self._pool = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, *exc) -> None:
+        self.close(abort=kind is not None)

@@ -16,7 +16,7 @@ import stormpy.developer as storm_dev
 from attrs import frozen
 
 from parley_core.errors import ModelError
-from parley_core.evaluate.pool import default_workers, spawn_pool, stop_pool
+from parley_core.evaluate.pool import PoolOwner, default_workers
 from parley_core.model import Family
 from parley_core.prism import program as prism
 from parley_core.progress import Progress
@@ -188,7 +188,7 @@ def _worker_check(task: StormTask, values: tuple[int, ...]) -> list[float]:
     return checker.check(values)
 
 
-class StormEvaluator:
+class StormEvaluator(PoolOwner):
     """Evaluate policies with Storm, in this process or in ``workers`` processes."""
 
     name = "storm"
@@ -217,20 +217,3 @@ class StormEvaluator:
             if progress:
                 progress(1)
         return out
-
-    def _executor(self) -> ProcessPoolExecutor:
-        if self._pool is None:
-            self._pool = spawn_pool(self.workers)
-        return self._pool
-
-    def close(self, abort: bool = False) -> None:
-        """Release the workers (``abort``: end them at once, on an error or Ctrl-C)."""
-        if self._pool is not None:
-            stop_pool(self._pool, abort)
-            self._pool = None
-
-    def __enter__(self) -> StormEvaluator:
-        return self
-
-    def __exit__(self, kind, *exc) -> None:
-        self.close(abort=kind is not None)
