@@ -4,20 +4,22 @@ A front found with the quotient evaluator is re-checked by Storm (sound value it
 1e-12); the result records the largest difference between the two, and Storm's values
 replace the search's. Storm checks *policy programs* by default, many policies per build
 (:mod:`parley_core.evaluate.batch`, :data:`VerifyPath.BATCH`), or the augmented program one
-policy at a time (the reference, :data:`VerifyPath.REFERENCE`); the result says which. A front found with the Storm
-evaluator is Storm's already. Campaigns may skip the re-check for time and say so
-(:attr:`Verified.NOT_CHECKED`), and re-check later (``parley experiment verify``).
+policy at a time (the reference, :data:`VerifyPath.REFERENCE`); the result says which.
+A front found with the Storm evaluator is Storm's already. Campaigns may skip the re-check
+for time and say so (:attr:`Verified.NOT_CHECKED`), and re-check later (``parley
+experiment verify``).
 """
 
 from __future__ import annotations
 
 import enum
 import time
+from typing import Any
 
 import numpy as np
 from attrs import frozen
 
-from parley_core.errors import EvaluatorDisagreement, OptionError
+from parley_core.errors import EvaluatorDisagreement, ModelError, OptionError
 from parley_core.model import Family
 from parley_core.progress import NullReporter, Reporter
 
@@ -143,14 +145,12 @@ def check_with_storm(
     :class:`~parley_core.errors.EvaluatorDisagreement` names the policy, the objective and
     both values. ``names`` name the policies in that message (None: by their decisions);
     the first ``baselines`` rows are the baselines, counted apart in the result. ``path``:
-    how Storm gets the policies (:class:`VerifyPath`); a family read back from files, which has no
-    original model to write policy programs from, takes the reference path."""
+    how Storm gets the policies (:class:`VerifyPath`; :func:`storm_verifier` says when the
+    reference path stands in for policy programs)."""
     reporter = reporter or NullReporter()
     start = time.perf_counter()
-    path = VerifyPath.of(path)
-    if family.system is None:
-        path = VerifyPath.REFERENCE
-    with storm_verifier(family, path, workers) as storm:
+    storm, path = storm_verifier(family, path, workers, reporter)
+    with storm:
         reporter.stage("verify with Storm", len(policies))
         checked = storm.evaluate(policies, progress=reporter.advance)
     absolute, relative = differences(values, checked)
@@ -177,12 +177,26 @@ def check_with_storm(
     return verification, checked
 
 
-def storm_verifier(family: Family, path: VerifyPath | str = VerifyPath.BATCH, workers: int | None = None):
-    """The Storm evaluator of a verification path."""
-    if VerifyPath.of(path) is VerifyPath.BATCH:
-        from parley_core.evaluate.batch import BatchStormEvaluator
+def storm_verifier(
+    family: Family,
+    path: VerifyPath | str = VerifyPath.BATCH,
+    workers: int | None = None,
+    reporter: Reporter | None = None,
+) -> tuple[Any, VerifyPath]:
+    """The Storm evaluator of a verification path, and the path it takes.
 
-        return BatchStormEvaluator(family, workers=workers)
+    Policy programs are written from the family's original model: a family read back from
+    files has none and takes the reference path; so does a model parley cannot write policy
+    programs for (it uses the names parley needs, say), and the reporter says so."""
     from parley_core.evaluate.storm import StormEvaluator
 
-    return StormEvaluator(family, workers=workers)
+    if VerifyPath.of(path) is VerifyPath.BATCH and family.system is not None:
+        from parley_core.evaluate.batch import BatchStormEvaluator
+
+        try:
+            return BatchStormEvaluator(family, workers=workers), VerifyPath.BATCH
+        except (ModelError, RuntimeError) as exc:
+            (reporter or NullReporter()).note(
+                f"Storm checks the augmented model, one policy at a time: no policy programs for this model ({exc})"
+            )
+    return StormEvaluator(family, workers=workers), VerifyPath.REFERENCE

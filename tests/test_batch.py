@@ -295,3 +295,38 @@ def test_a_batch_has_the_same_values_whatever_was_built_before():
         checker.check(family.random(np.random.default_rng(seed), 2 + seed))
     again, _ = checker.check(policies)
     assert (first == again).all()
+
+
+class _Notes:
+    def __init__(self) -> None:
+        self.notes: list[str] = []
+
+    def stage(self, *args) -> None:
+        pass
+
+    def advance(self, count: int = 1) -> None:
+        pass
+
+    def note(self, text: str) -> None:
+        self.notes.append(text)
+
+
+def test_a_model_without_policy_programs_is_checked_by_the_reference_and_says_so():
+    from conftest import TOY
+
+    from parley_core.verify import check_with_storm
+
+    # the model takes a name policy programs need: verification still happens, by the
+    # reference path, and the run is told and records it
+    system = toy_system(prism=TOY.replace("const int K = 3;", "const int K = 3;\nconst int parley_policy = 0;"))
+    family = make(system)
+    rows = np.array([p.values for p in family.baseline_policies()])
+    with StormEvaluator(family, workers=1) as reference:
+        right = reference.evaluate(rows)
+    notes = _Notes()
+    verification, checked = check_with_storm(family, rows, right, workers=1, reporter=notes)
+    assert verification.path == "augmented program" and (checked == right).all()
+    assert len(notes.notes) == 1 and "parley_policy" in notes.notes[0]
+    default = make(toy_system())
+    verification, _ = check_with_storm(default, rows, right, workers=1)
+    assert verification.path == "policy programs"

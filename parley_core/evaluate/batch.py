@@ -30,7 +30,7 @@ import numpy as np
 from attrs import frozen
 
 from parley_core.errors import ModelError
-from parley_core.evaluate.pool import PoolOwner, default_workers
+from parley_core.evaluate.pool import PoolOwner, default_workers, worker_state
 from parley_core.evaluate.storm import check_instance, reference_environment, unbounded_reward
 from parley_core.model import Family
 from parley_core.prism import program as prism
@@ -89,7 +89,7 @@ class BatchChecker:
         """Values [len(policies), objectives] and the batch model's number of states."""
         program = self._program(policies)
         properties = prism.parse_properties(self.task.formulas, program, origin="objective")
-        model, rows = check_instance(
+        model, at, rows = check_instance(
             program,
             properties,
             self.task.objective_names,
@@ -100,11 +100,11 @@ class BatchChecker:
         )
         variable = program.expression_manager.get_variable(INDEX)
         out = np.full((len(policies), len(self.task.formulas)), np.nan)
-        for state, row in zip(starts(model, len(policies)), rows):
+        for state, row in zip(at, rows):
             index = model.state_valuations.get_int64_value(state, variable) if len(policies) > 1 else 0
             out[index] = row
         if np.isnan(out).any():
-            raise RuntimeError("a policy of the batch has no initial state of its own")
+            raise RuntimeError("a policy of the batch has no start state of its own")
         # the dispatch state is not a policy's: without it, the batch's states are the policies'
         return out, int(model.nr_states) - (len(policies) > 1)
 
@@ -126,32 +126,18 @@ def starts(model, count: int) -> list[int]:
     return successors
 
 
-_CHECKERS: dict[BatchTask, BatchChecker] = {}
-"""Per worker process: the checker of each task seen (a cache, filled by _worker_check)."""
-
-
-def _checker(task: BatchTask) -> BatchChecker:
-    checker = _CHECKERS.get(task)
-    if checker is None:
-        _CHECKERS.clear()
-        checker = _CHECKERS[task] = BatchChecker(task)
-    return checker
-
-
 def _worker_check(task: BatchTask, policies: np.ndarray) -> tuple[np.ndarray, int]:
-    return _checker(task).check(policies)
+    return worker_state(BatchChecker, task).check(policies)
 
 
 def _worker_ready(task: BatchTask) -> None:
-    _checker(task)
+    worker_state(BatchChecker, task)
 
 
 class BatchStormEvaluator(PoolOwner):
     """Evaluate policies with Storm in batches, in this process or in ``workers`` processes."""
 
     name = "storm"
-    path = "policy programs"
-    """How the values were obtained, as ``summary.json`` records it."""
 
     def __init__(self, family: Family, workers: int | None = None) -> None:
         self.family = family
@@ -162,8 +148,7 @@ class BatchStormEvaluator(PoolOwner):
         self.states_per_policy: float | None = None
         """Measured on the first batch; sets the batch size."""
         self.states = 0
-        self.checked = 0
-        """States built and policies checked so far (without the dispatch states)."""
+        """States built so far (without the dispatch states)."""
 
     def batch_size(self, remaining: int) -> int:
         if self.local.single:
@@ -181,46 +166,34 @@ class BatchStormEvaluator(PoolOwner):
     def evaluate(self, policies: np.ndarray, progress: Progress | None = None) -> np.ndarray:
         policies = np.asarray(policies, dtype=np.int64).reshape(-1, len(self.family.decisions))
         out = np.empty((len(policies), len(self.family.objectives)))
-        start = 0
-        if not len(policies):
-            return out
         parallel = self.workers > 1 and len(policies) > FIRST_BATCH + 1
         warm: list = []
         if parallel and self._pool is None:
             # the workers start (import Storm, parse the template) while the first batch runs here
             warm = [self._executor().submit(_worker_ready, self.task) for _ in range(self.workers)]
-        if self.states_per_policy is None:
-            size = self.batch_size(len(policies))
-            out[:size], states = self.local.check(policies[:size])
-            self.states_per_policy = states / size
+        start = 0
+        if self.states_per_policy is None and len(policies):
+            start = self.batch_size(len(policies))
+            out[:start], states = self.local.check(policies[:start])
+            self.states_per_policy = states / start
             self.states += states
-            self.checked += size
-            start = size
             if progress:
-                progress(size)
+                progress(start)
         batches = []
         while start < len(policies):
             size = self.batch_size(len(policies) - start)
             batches.append((start, start + size))
             start += size
-        if not parallel or len(batches) <= 1:
-            for first, last in batches:
-                out[first:last], states = self.local.check(policies[first:last])
-                self.states += states
-                self.checked += last - first
-                if progress:
-                    progress(last - first)
-            return out
-        pool = self._executor()
-        for ready in warm:
-            ready.result()
-        futures = [
-            (first, last, pool.submit(_worker_check, self.task, policies[first:last])) for first, last in batches
-        ]
-        for first, last, future in futures:
-            out[first:last], states = future.result()
+        if parallel and len(batches) > 1:
+            for ready in warm:
+                ready.result()
+            futures = [self._executor().submit(_worker_check, self.task, policies[a:b]) for a, b in batches]
+            results = (future.result() for future in futures)
+        else:
+            results = (self.local.check(policies[a:b]) for a, b in batches)
+        for (first, last), (values, states) in zip(batches, results):
+            out[first:last] = values
             self.states += states
-            self.checked += last - first
             if progress:
                 progress(last - first)
         return out

@@ -16,6 +16,20 @@ from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
+_WORKER_STATE: dict[tuple[Callable[..., Any], Any], Any] = {}
+"""Per worker process: what :func:`worker_state` made for the last task (the sanctioned cache)."""
+
+
+def worker_state(make: Callable[[Any], Any], task: Any) -> Any:
+    """``make(task)``, made once per process and task: a worker keeps only the last task's
+    (a checker or solver of one family), so a pool that moves on frees the one before."""
+    key = (make, task)
+    state = _WORKER_STATE.get(key)
+    if state is None:
+        _WORKER_STATE.clear()
+        state = _WORKER_STATE[key] = make(task)
+    return state
+
 
 def default_workers(workers: int | None = None) -> int:
     """``workers`` if given, else one per core; at least 1."""

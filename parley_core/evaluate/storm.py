@@ -16,7 +16,7 @@ import stormpy.developer as storm_dev
 from attrs import frozen
 
 from parley_core.errors import ModelError
-from parley_core.evaluate.pool import PoolOwner, default_workers
+from parley_core.evaluate.pool import PoolOwner, default_workers, worker_state
 from parley_core.model import Family
 from parley_core.prism import program as prism
 from parley_core.progress import Progress
@@ -96,25 +96,29 @@ def check_instance(
     *,
     valuations: bool = False,
     at: Callable[[Any], list[int]] | None = None,
-) -> tuple[Any, list[list[float]]]:
+) -> tuple[Any, list[int], list[list[float]]]:
     """Build a program whose constants are all defined and check every property at each of
-    its initial states (or at the states ``at(model)`` names): the model and
+    its initial states (or at the states ``at(model)`` names): the model, those states and
     ``values[state][objective]``.
 
-    A model of at most :data:`EXACT_STATES` states with one initial state has its unbounded
-    rewards checked in exact rational arithmetic. ``valuations``: build the state valuations
-    too (to tell initial states apart)."""
+    Checked at its one initial state alone, a model of at most :data:`EXACT_STATES` states
+    has its unbounded rewards checked in exact rational arithmetic. ``valuations``: build the
+    state valuations too (to tell states apart)."""
     options = stormpy.BuilderOptions(properties)
     if valuations:
         options.set_build_state_valuations()
-    try:
-        model = stormpy.build_model(instance, options=options)
-        exact = None
-        if model.nr_states <= EXACT_STATES and any(unbounded) and len(model.initial_states) == 1:
-            exact = stormpy.build_model[stormpy.Rational](instance, properties)
-    except RuntimeError as exc:
-        raise ModelError(f"Storm cannot build the model: {prism.storm_message(exc)}") from None
+
+    def build(value_type, build_options):
+        try:
+            return stormpy.build_model[value_type](instance, options=build_options)
+        except RuntimeError as exc:
+            raise ModelError(f"Storm cannot build the model: {prism.storm_message(exc)}") from None
+
+    model = build(float, options)
     initial = list(model.initial_states) if at is None else at(model)
+    exact = None
+    if model.nr_states <= EXACT_STATES and any(unbounded) and initial == list(model.initial_states)[:1]:
+        exact = build(stormpy.Rational, stormpy.BuilderOptions(properties))
     columns = []
     for prop, name, is_unbounded in zip(properties, objective_names, unbounded):
         try:
@@ -124,7 +128,7 @@ def check_instance(
                 columns.append(check_values(model, prop, environment, initial))
         except RuntimeError as exc:
             raise ModelError(f"Storm cannot check objective {name!r}: {prism.storm_message(exc)}") from None
-    return model, [list(row) for row in zip(*columns)] if columns else [[] for _ in initial]
+    return model, initial, [list(row) for row in zip(*columns)] if columns else [[] for _ in initial]
 
 
 @frozen(kw_only=True)
@@ -168,7 +172,7 @@ class StormChecker:
         instance = self.program.define_undefined_constants(
             {v: manager.integer(int(k)) for v, k in zip(self.variables, values)}
         )
-        model, rows = check_instance(
+        _, _, rows = check_instance(
             instance, self.properties, self.task.objective_names, self.unbounded_rewards, self.environment
         )
         if len(rows) != 1:
@@ -176,16 +180,8 @@ class StormChecker:
         return rows[0]
 
 
-_CHECKERS: dict[StormTask, StormChecker] = {}
-"""Per worker process: the checker of each task seen (a cache, filled by _worker_check)."""
-
-
 def _worker_check(task: StormTask, values: tuple[int, ...]) -> list[float]:
-    checker = _CHECKERS.get(task)
-    if checker is None:
-        _CHECKERS.clear()
-        checker = _CHECKERS[task] = StormChecker(task)
-    return checker.check(values)
+    return worker_state(StormChecker, task).check(values)
 
 
 class StormEvaluator(PoolOwner):

@@ -113,8 +113,8 @@ def policy_template(family: Family) -> PolicyTemplate:
     program = prism.parse_program(system.prism, origin=origin)
     service_vars = rewrite.service_variables(program, system.services, origin)
     manager = program.expression_manager
-    if manager.has_variable(INDEX) or manager.has_variable(KEPT):
-        raise ModelError(f"{origin} uses the identifier {INDEX} or {KEPT}; rename it, parley needs those names")
+    if manager.has_variable(INDEX) or manager.has_variable(KEPT) or any(m.name == DISPATCH for m in program.modules):
+        raise ModelError(f"{origin} uses the name {INDEX}, {KEPT} or {DISPATCH}; policy programs need them")
     has_kept = bool(family.left_out)
     condition = manager.declare_boolean_variable(KEPT).get_expression() if has_kept else None
 
