@@ -152,7 +152,7 @@ def summary(result: RunResult) -> dict[str, Any]:
         "options": options_as_dict(result.prepared.options),
         "seed": result.settings.seed,
         "search": {
-            "algorithm": "NSGA-II (pymoo)",
+            "algorithm": result.settings.algorithm,
             "population": result.settings.population,
             "generations": result.settings.generations,
             "generations_done": search.generations,

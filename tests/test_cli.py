@@ -164,6 +164,19 @@ def test_run_stops_at_an_evaluation_budget_or_a_time_limit(tmp_path):
     assert invoke("run", "robot_grid", *QUICK, "--max-evaluations", "0", "--out", str(tmp_path / "z")).exit_code == 2
 
 
+def test_run_takes_a_search_configuration_by_name(tmp_path):
+    result = invoke(
+        "run", "robot_grid", *QUICK, "--algorithm", "archive", "--max-evaluations", "40", "--out", str(tmp_path / "a")
+    )
+    assert result.exit_code == 0, result.stderr
+    search = json.loads((tmp_path / "a" / "summary.json").read_text())["search"]
+    assert search["algorithm"] == "archive" and search["evaluations"] == 40
+    assert_user_error(
+        invoke("run", "robot_grid", *QUICK, "--algorithm", "nsga3", "--out", str(tmp_path / "n")),
+        "unknown search algorithm 'nsga3'; valid: paper, ordinal, archive, sms, blend",
+    )
+
+
 def test_run_refuses_a_non_empty_output_directory(tmp_path):
     (tmp_path / "keep.txt").write_text("mine")
     result = invoke("run", "robot_grid", *QUICK, "--out", str(tmp_path))

@@ -66,15 +66,19 @@ def search_settings(
     time_limit: float | None,
     seed: int,
     constraint: list[str] | None = None,
+    algorithm: str | None = None,
 ) -> Any:
     """SearchSettings from the command line: without ``--generations``, the default number
     of generations applies unless ``--max-evaluations`` or ``--time-limit`` is given."""
-    from parley_core.search import SearchSettings, default
+    from parley_core.search import SearchSettings, configuration, default
 
+    algorithm = algorithm if algorithm is not None else default("algorithm")
+    configuration(algorithm)  # an unknown name is a one-line error
     if generations is None and max_evaluations is None and time_limit is None:
         generations = default("generations")
     try:
         return SearchSettings(
+            algorithm=algorithm,
             population=population,
             generations=generations,
             max_evaluations=max_evaluations,

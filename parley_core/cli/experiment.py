@@ -13,7 +13,9 @@ from parley_core.cli.app import experiment_app
 from parley_core.cli.common import case_study, search_settings, user_errors
 from parley_core.cli.console import progress_bars
 from parley_core.cli.options import (
+    ALGORITHM,
     POPULATION,
+    AlgorithmOption,
     CaseArgument,
     EvaluatorOption,
     GenerationsOption,
@@ -51,6 +53,7 @@ def experiment_run(
     name: Annotated[
         str | None, typer.Option(help="Campaign name inside the store (default: the case study's name).")
     ] = None,
+    algorithm: AlgorithmOption = ALGORITHM,
     population: Annotated[int, typer.Option(min=2, help="NSGA-II population size.")] = POPULATION,
     generations: GenerationsOption = None,
     max_evaluations: MaxEvaluationsOption = None,
@@ -81,8 +84,10 @@ def experiment_run(
         max_evaluations=max_evaluations,
         time_limit=time_limit,
         seed=first_seed,
+        algorithm=algorithm,
     )
     budget = Budget(
+        algorithm=limits.algorithm,
         population=limits.population,
         generations=limits.generations,
         max_evaluations=limits.max_evaluations,

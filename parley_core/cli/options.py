@@ -54,6 +54,15 @@ JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON documen
 ForceOption = Annotated[bool, typer.Option(help="Replace the files of an existing --out directory.")]
 CaseArgument = Annotated[str, typer.Argument(help="Case study name (see `parley list`).")]
 
+ALGORITHM = default("algorithm")
+AlgorithmOption = Annotated[
+    str,
+    typer.Option(
+        "--algorithm",
+        help="Search configuration: paper (the paper's NSGA-II), ordinal, archive, sms, blend "
+        "(docs/search.md; benchmarks/search.py measures them).",
+    ),
+]
 SEED = default("seed")
 POPULATION = default("population")
 SeedOption = Annotated[int, typer.Option(help="Seed of the search; the same seed gives the same front.")]

@@ -14,8 +14,10 @@ from parley_core.cli.app import app
 from parley_core.cli.common import prepare_case, search_settings, user_errors
 from parley_core.cli.console import RichReporter, fmt, front_table, stderr
 from parley_core.cli.options import (
+    ALGORITHM,
     POPULATION,
     SEED,
+    AlgorithmOption,
     BoundOption,
     BoundTimeOption,
     CaseArgument,
@@ -45,6 +47,7 @@ def run_command(
     case: CaseArgument,
     set_: SetOption = None,
     seed: SeedOption = SEED,
+    algorithm: AlgorithmOption = ALGORITHM,
     population: PopulationOption = POPULATION,
     generations: GenerationsOption = None,
     max_evaluations: MaxEvaluationsOption = None,
@@ -66,6 +69,7 @@ def run_command(
         time_limit=time_limit,
         seed=seed,
         constraint=constraint,
+        algorithm=algorithm,
     )
     out = out or Path("runs") / f"{case}-{time.strftime('%Y%m%d-%H%M%S')}"
     _synthesize(
@@ -134,6 +138,7 @@ def synthesize_command(
     ] = None,
     constraint: ConstraintOption = None,
     seed: SeedOption = SEED,
+    algorithm: AlgorithmOption = ALGORITHM,
     population: PopulationOption = POPULATION,
     generations: GenerationsOption = None,
     max_evaluations: MaxEvaluationsOption = None,
@@ -162,6 +167,7 @@ def synthesize_command(
         time_limit=time_limit,
         seed=seed,
         constraint=constraint,
+        algorithm=algorithm,
     )
     out = out or Path("runs") / f"{model.stem}-{time.strftime('%Y%m%d-%H%M%S')}"
     _synthesize(prepare_with, settings, out, force, evaluator, workers, bound, bound_time, verify_with)

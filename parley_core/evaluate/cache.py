@@ -1,7 +1,9 @@
 """A memo in front of an evaluator: every policy evaluated once, in the order first seen.
 
 The search's archive: the front is taken from everything evaluated, not only from the
-last population, and no policy is evaluated twice.
+last population, and no policy is evaluated twice. Where the evaluator can say which
+decisions a policy consults (``evaluate_consulted``, the quotient's), the archive keeps that
+too; elsewhere every decision counts as consulted.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ class CachingEvaluator:
         self._index: dict[bytes, int] = {}
         self._policies: list[np.ndarray] = []
         self._values: list[np.ndarray] = []
+        self._consulted: list[np.ndarray] = []
         self.n_decisions = n_decisions
         self.n_objectives = n_objectives
 
@@ -38,6 +41,26 @@ class CachingEvaluator:
     def values(self) -> np.ndarray:
         return np.array(self._values, dtype=float).reshape(-1, self.n_objectives)
 
+    @property
+    def consulted(self) -> np.ndarray:
+        """Per archived policy, the decisions its reachable states consult [n, decisions] bool."""
+        return np.array(self._consulted, dtype=bool).reshape(-1, self.n_decisions)
+
+    def rows(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The policies and consulted masks of archive rows ``indices``."""
+        indices = np.asarray(indices, dtype=np.int64).ravel()
+        policies = np.array([self._policies[i] for i in indices], dtype=np.int64).reshape(-1, self.n_decisions)
+        masks = np.array([self._consulted[i] for i in indices], dtype=bool).reshape(-1, self.n_decisions)
+        return policies, masks
+
+    def lookup(self, policies: np.ndarray) -> np.ndarray:
+        """Archive rows of ``policies`` (-1: not evaluated)."""
+        policies = np.asarray(policies, dtype=np.int64).reshape(-1, self.n_decisions)
+        return np.array([self._index.get(row.tobytes(), -1) for row in policies], dtype=np.int64)
+
+    def __contains__(self, policy: np.ndarray) -> bool:
+        return np.asarray(policy, dtype=np.int64).tobytes() in self._index
+
     def evaluate(self, policies: np.ndarray, progress: Progress | None = None, budget: int | None = None) -> np.ndarray:
         """Values of ``policies``; at most ``budget`` new ones are evaluated (first come,
         first served), and the rows of the others are NaN."""
@@ -51,11 +74,17 @@ class CachingEvaluator:
                 new[key] = row
         if new:
             rows = np.array(list(new.values()))
-            values = self.evaluator.evaluate(rows, progress=progress)
-            for key, row, value in zip(new, rows, values):
+            consulting = getattr(self.evaluator, "evaluate_consulted", None)
+            if consulting is not None:
+                values, consulted = consulting(rows, progress=progress)
+            else:
+                values = self.evaluator.evaluate(rows, progress=progress)
+                consulted = np.ones(rows.shape, dtype=bool)
+            for key, row, value, mask in zip(new, rows, values, consulted):
                 self._index[key] = len(self._policies)
                 self._policies.append(row.copy())
                 self._values.append(np.asarray(value, dtype=float))
+                self._consulted.append(np.asarray(mask, dtype=bool))
         missing = np.full(self.n_objectives, np.nan)
         return np.array([self._values[self._index[k]] if k in self._index else missing for k in keys]).reshape(
             -1, self.n_objectives

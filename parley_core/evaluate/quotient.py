@@ -31,11 +31,23 @@ def _worker_start(quotient: Quotient) -> None:
     _SOLVER[:] = [QuotientSolver(quotient)]
 
 
-def _worker_solve(rows: np.ndarray) -> tuple[np.ndarray, int]:
+def _solve_rows(solver: QuotientSolver, rows: np.ndarray, n_objectives: int, progress=None):
+    """Values and consulted decisions of ``rows`` on one solver (None: a value it leaves to Storm)."""
+    values = np.empty((len(rows), n_objectives))
+    consulted = np.zeros(rows.shape, dtype=bool)
+    for i, row in enumerate(rows):
+        values[i] = [np.nan if v is None else v for v in solver.solve(row)]
+        consulted[i] = solver.consulted
+        if progress:
+            progress(1)
+    return values, consulted
+
+
+def _worker_solve(rows: np.ndarray, n_objectives: int) -> tuple[np.ndarray, np.ndarray, int]:
     solver = _SOLVER[0]
     before = solver.direct_solves
-    values = np.array([[np.nan if v is None else v for v in solver.solve(row)] for row in rows])
-    return values, solver.direct_solves - before
+    values, consulted = _solve_rows(solver, rows, n_objectives)
+    return values, consulted, solver.direct_solves - before
 
 
 class QuotientEvaluator:
@@ -68,26 +80,32 @@ class QuotientEvaluator:
         """Policies no solve of the quotient could certify, checked by Storm instead."""
 
     def evaluate(self, policies: np.ndarray, progress: Progress | None = None) -> np.ndarray:
+        return self.evaluate_consulted(policies, progress)[0]
+
+    def evaluate_consulted(
+        self, policies: np.ndarray, progress: Progress | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Values [n, objectives] and, per policy, the decisions its reachable states consult
+        [n, decisions] bool: a policy that agrees with it there has the same DTMC (the search
+        mutates what a policy consults, and knows a child equal there is no new policy)."""
         policies = np.asarray(policies, dtype=np.int64).reshape(-1, len(self.family.decisions))
+        n_objectives = len(self.family.objectives)
         if self.workers > 1 and len(policies) >= 64:
             pool = self._executor()
             chunks = [c for c in np.array_split(policies, self.workers * 4) if len(c)]
-            futures = [pool.submit(_worker_solve, chunk) for chunk in chunks]
-            parts = []
+            futures = [pool.submit(_worker_solve, chunk, n_objectives) for chunk in chunks]
+            parts, masks = [], []
             for future, chunk in zip(futures, chunks):
-                part, direct = future.result()
+                part, mask, direct = future.result()
                 parts.append(part)
+                masks.append(mask)
                 self.direct_solves += direct
                 if progress:
                     progress(len(chunk))
-            values = np.vstack(parts)
+            values, consulted = np.vstack(parts), np.vstack(masks)
         else:
-            values = np.empty((len(policies), len(self.family.objectives)))
             before = self.solver.direct_solves
-            for i, row in enumerate(policies):
-                values[i] = [np.nan if v is None else v for v in self.solver.solve(row)]
-                if progress:
-                    progress(1)
+            values, consulted = _solve_rows(self.solver, policies, n_objectives, progress)
             self.direct_solves += self.solver.direct_solves - before
         missing = [i for i, q in enumerate(self.quotient.objectives) if q is None]
         if missing:
@@ -100,7 +118,7 @@ class QuotientEvaluator:
         if len(uncertain):
             self.uncertified += len(uncertain)
             values[uncertain] = self._storm_values(policies[uncertain])
-        return values
+        return values, consulted
 
     def _storm_values(self, policies: np.ndarray) -> np.ndarray:
         if self._storm is None:

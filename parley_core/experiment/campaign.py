@@ -35,6 +35,7 @@ from parley_core.search import default as search_default
 class Budget:
     """What every run of a campaign shares: search budget, evaluator, verification."""
 
+    algorithm: str = search_default("algorithm")
     population: int = search_default("population")
     generations: int | None = search_default("generations")
     evaluator: str = field(default=EvaluatorKind.QUOTIENT.value, converter=lambda k: EvaluatorKind.of(k).value)
@@ -44,6 +45,7 @@ class Budget:
 
     def settings(self, seed: int) -> SearchSettings:
         return SearchSettings(
+            algorithm=self.algorithm,
             population=self.population,
             generations=self.generations,
             max_evaluations=self.max_evaluations,
@@ -280,6 +282,8 @@ def describe(budget: Budget, fixed: Sequence[str]) -> dict[str, Any]:
     for key in ("max_evaluations", "time_limit"):
         if settings[key] is None:
             del settings[key]
+    if settings["algorithm"] == "paper":  # stores from before there was a choice
+        del settings["algorithm"]
     return {**settings, "fixed_options": list(fixed)}
 
 

@@ -14,11 +14,14 @@ from numba import njit
 
 
 @njit(cache=True)
-def _consistent(policy, choice_dec, choice_val, c):
+def _consistent(policy, choice_dec, choice_val, c, consulted):
+    """Whether choice ``c`` is consistent with ``policy``; marks in ``consulted`` every
+    decision the test reads (it stops at the first that disagrees)."""
     for j in range(choice_dec.shape[1]):
         d = choice_dec[c, j]
         if d < 0:
             return True
+        consulted[d] = True
         if policy[d] != choice_val[c, j]:
             return False
     return True
@@ -45,6 +48,7 @@ def explore(
     levels,
     chosen,
     stuck,
+    consulted,
 ):
     """The reachable DTMC of ``policy``; returns (states, entries).
 
@@ -54,6 +58,9 @@ def explore(
     rewards); ``levels`` each state's distance (in steps) from the initial one. ``chosen`` is
     work space for the consistent choices of one state (as long as the most choices a state has);
     ``stuck`` marks the states without one, which Storm's DTMC of the policy labels "deadlock".
+    ``consulted`` (False everywhere on entry) gets True for each decision a reachable state's
+    consistency test reads: a policy that agrees with this one on those decisions has the
+    same reachable DTMC, choice by choice.
     """
     n_rewards = state_rewards.shape[0]
     order[0] = initial
@@ -67,7 +74,7 @@ def explore(
         s = order[head]
         k = 0
         for c in range(state_choices[s], state_choices[s + 1]):
-            if _consistent(policy, choice_dec, choice_val, c):
+            if _consistent(policy, choice_dec, choice_val, c, consulted):
                 chosen[k] = c
                 k += 1
         for r in range(n_rewards):

@@ -55,6 +55,8 @@ class QuotientSolver:
         self.levels = np.empty(n, dtype=np.int64)
         self.chosen = np.empty(max(1, int(np.diff(quotient.state_choices).max(initial=0))), dtype=np.int64)
         self.stuck = np.zeros(n, dtype=np.bool_)
+        self.consulted = np.zeros(0, dtype=np.bool_)
+        """The decisions the last solved policy consulted (see :func:`.kernels.explore`)."""
         self.last_states = 0
         self.direct_solves = 0
         self.last_sweeps = 0
@@ -70,8 +72,12 @@ class QuotientSolver:
 
     def solve(self, policy: np.ndarray) -> list[float | None]:
         q = self.q
+        policy = np.asarray(policy, dtype=np.int64)
+        if len(self.consulted) != len(policy):
+            self.consulted = np.zeros(len(policy), dtype=np.bool_)
+        self.consulted[:] = False
         count, nnz = kernels.explore(
-            np.asarray(policy, dtype=np.int64),
+            policy,
             q.initial,
             q.state_choices,
             q.choice_branches,
@@ -90,6 +96,7 @@ class QuotientSolver:
             self.levels,
             self.chosen,
             self.stuck,
+            self.consulted,
         )
         self.last_states = count
         indptr, cols, vals = self.indptr[: count + 1], self.cols[:nnz], self.vals[:nnz]

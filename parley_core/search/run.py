@@ -1,0 +1,83 @@
+"""Running a search: the first population, the loop, Ctrl-C, the result."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from pymoo.core.termination import TerminateIfAny
+
+from parley_core.evaluate import Evaluator
+from parley_core.evaluate.cache import CachingEvaluator
+from parley_core.model import Family
+from parley_core.progress import Progress
+from parley_core.search.algorithms import configuration
+from parley_core.search.problem import Genes, PolicyProblem, termination
+from parley_core.search.settings import SearchResult, SearchSettings, Stop
+
+
+def initial_population(family: Family, settings: SearchSettings, blend: float = 0.0) -> np.ndarray:
+    """The baselines, then policies drawn from the seed up to the population size, as genes
+    (:class:`Genes`): uniformly random ones, and with ``blend`` (a share of the draws) blends
+    of two baselines (each decision from either), which lie between points the baseline
+    already reaches."""
+    rng = np.random.default_rng(settings.seed)
+    genes = Genes(family)
+    baselines = genes.encode(
+        np.array([p.values for p in family.baseline_policies()], dtype=np.int64).reshape(-1, len(genes.lows))
+    )
+    lows, highs = genes.lows, genes.highs
+    n_random = max(0, settings.population - len(baselines))
+    rows = rng.integers(lows, highs + 1, size=(n_random, len(lows)))
+    if blend > 0 and len(baselines) >= 2:
+        blended = np.flatnonzero(rng.random(n_random) < blend)
+        pairs = baselines[rng.integers(0, len(baselines), size=(len(blended), 2))]
+        pick = rng.random((len(blended), len(lows))) < 0.5
+        rows[blended] = np.where(pick, pairs[:, 0], pairs[:, 1])
+    return np.vstack([baselines, rows]).astype(float)
+
+
+def search(
+    family: Family,
+    evaluator: Evaluator,
+    settings: SearchSettings,
+    *,
+    archive: CachingEvaluator | None = None,
+    progress: Progress | None = None,
+) -> SearchResult:
+    """Run the settings' search configuration; Ctrl-C stops it and returns what was
+    evaluated so far (``interrupted``).
+
+    ``archive`` may hold policies evaluated before (by the same evaluator); they are not
+    evaluated again, count towards ``max_evaluations`` and belong to the result.
+    ``progress`` is called once per generation.
+    """
+    archive = (
+        archive if archive is not None else CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
+    )
+    problem = PolicyProblem(family, archive, constraints=settings.constraints, budget=settings.max_evaluations)
+    chosen = configuration(settings.algorithm)
+    algorithm = chosen.build(settings.population, initial_population(family, settings, blend=chosen.blend))
+    criteria = termination(settings, archive)
+    algorithm.setup(problem, termination=TerminateIfAny(*criteria.values()), seed=settings.seed, verbose=False)
+    start = time.perf_counter()
+    generation = 0
+    stopped_by = None
+    try:
+        while algorithm.has_next():
+            algorithm.next()
+            generation += 1
+            if progress:
+                progress(1)
+    except KeyboardInterrupt:
+        stopped_by = Stop.INTERRUPTED
+    if stopped_by is None:
+        stopped_by = next((stop for stop, c in criteria.items() if c.has_terminated()), Stop.GENERATIONS)
+    return SearchResult(
+        policies=archive.policies,
+        values=archive.values,
+        evaluations=len(archive),
+        generations=generation,
+        seconds=time.perf_counter() - start,
+        stopped_by=stopped_by,
+    )

@@ -1,0 +1,135 @@
+"""The search configurations: the paper's unchanged, every one deterministic by seed, and the
+facts the ordinal operators rely on (a decision no reachable state consults changes nothing)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from parley_core.evaluate.cache import CachingEvaluator
+from parley_core.evaluate.quotient import QuotientEvaluator
+from parley_core.evaluate.storm import StormEvaluator
+from parley_core.search import ALGORITHMS, SearchSettings, Stop, search
+from parley_core.search.operators import OrdinalMating
+from parley_core.testing import family as make_family
+
+FIXTURE = Path(__file__).parent / "data" / "search_paper_23ccbee.json"
+"""Archives of two small searches made with commit 23ccbee, before there were configurations
+(tests/data/README.md says how it was made)."""
+
+
+@pytest.fixture(scope="module")
+def web_ids():
+    family = make_family("web_ids", [])
+    with QuotientEvaluator(family, workers=1) as evaluator:
+        yield family, evaluator
+
+
+@pytest.fixture(scope="module")
+def robot():
+    family = make_family("robot_grid", ["size=5", "seed=1", "max_interval=4", "horizon=45"])
+    with QuotientEvaluator(family, workers=1) as evaluator:
+        yield family, evaluator
+
+
+@pytest.mark.parametrize("key", ["web_ids", "robot_grid 4x4"])
+def test_the_paper_configuration_searches_as_before(key):
+    recorded = json.loads(FIXTURE.read_text())[key]
+    family = make_family(key.split()[0], recorded["options"])
+    with QuotientEvaluator(family, workers=1) as evaluator:
+        settings = SearchSettings(
+            algorithm="paper",
+            population=recorded["population"],
+            generations=recorded["generations"],
+            seed=recorded["seed"],
+        )
+        result = search(family, evaluator, settings)
+    assert result.policies.tolist() == recorded["policies"]
+    np.testing.assert_allclose(result.values, np.array(recorded["values"]), rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("algorithm", sorted(ALGORITHMS))
+def test_every_configuration_is_deterministic_by_seed(web_ids, algorithm):
+    family, evaluator = web_ids
+    runs = [
+        search(family, evaluator, SearchSettings(algorithm=algorithm, population=12, generations=4, seed=seed))
+        for seed in (5, 5, 6)
+    ]
+    assert runs[0].policies.tolist() == runs[1].policies.tolist()
+    assert np.array_equal(runs[0].values, runs[1].values, equal_nan=True)
+    assert runs[0].policies.tolist() != runs[2].policies.tolist()  # the seed is used
+
+
+@pytest.mark.parametrize("algorithm", sorted(ALGORITHMS))
+@pytest.mark.parametrize("budget", [1, 37])
+def test_every_configuration_meets_an_evaluation_budget_exactly(robot, algorithm, budget):
+    family, evaluator = robot
+    settings = SearchSettings(algorithm=algorithm, population=10, generations=None, max_evaluations=budget, seed=2)
+    result = search(family, evaluator, settings)
+    assert result.stopped_by is Stop.EVALUATIONS
+    assert result.evaluations == len({row.tobytes() for row in result.policies}) == budget
+
+
+def test_a_decision_no_reachable_state_consults_changes_no_value(robot):
+    """The quotient's consulted decisions: changing any of the others gives the same DTMC,
+    so the same values (bit for bit on the quotient, and Storm's values agree)."""
+    family, evaluator = robot
+    rng = np.random.default_rng(4)
+    lows = np.array([d.service.low for d in family.decisions])
+    highs = np.array([d.service.high for d in family.decisions])
+    policies = rng.integers(lows, highs + 1, size=(12, len(lows)))
+    values, consulted = evaluator.evaluate_consulted(policies)
+    assert (~consulted).any() and consulted.any(axis=1).all()
+    changed = policies.copy()
+    for row, mask in zip(changed, consulted):
+        free = np.flatnonzero(~mask)
+        row[free] = rng.integers(lows[free], highs[free] + 1)
+    changed_values, changed_consulted = evaluator.evaluate_consulted(changed)
+    assert np.array_equal(values, changed_values)
+    assert np.array_equal(consulted, changed_consulted)
+    with StormEvaluator(family, workers=1) as storm:
+        np.testing.assert_allclose(storm.evaluate(changed[:4]), values[:4], rtol=1e-9)
+
+
+def test_a_consulted_decision_is_one_some_policy_changes_a_value_by(robot):
+    """The mask is not everything: each consulted decision of a policy, set to another value,
+    changes the DTMC for at least some policy of a few (it is read by a reachable state)."""
+    family, evaluator = robot
+    rng = np.random.default_rng(9)
+    lows = np.array([d.service.low for d in family.decisions])
+    highs = np.array([d.service.high for d in family.decisions])
+    policy = rng.integers(lows, highs + 1, size=(1, len(lows)))
+    values, consulted = evaluator.evaluate_consulted(policy)
+    moved = 0
+    for j in np.flatnonzero(consulted[0]):
+        others = [v for v in range(lows[j], highs[j] + 1) if v != policy[0, j]]
+        variants = np.repeat(policy, len(others), axis=0)
+        variants[:, j] = others
+        moved += bool((evaluator.evaluate(variants) != values).any())
+    assert moved >= consulted[0].sum() // 2
+
+
+def test_ordinal_children_stay_in_range_and_are_new_dtmcs(robot):
+    family, evaluator = robot
+    archive = CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
+    settings = SearchSettings(algorithm="ordinal", population=10, generations=1, seed=3)
+    search(family, evaluator, settings, archive=archive)
+    from parley_core.search.problem import PolicyProblem
+
+    problem = PolicyProblem(family, archive)
+    mating = OrdinalMating()
+    rng = np.random.default_rng(1)
+    rows = rng.choice(len(archive), size=(30, 2))
+    policies, masks = archive.rows(rows.ravel())
+    genes = problem.genes.encode(policies).reshape(-1, 2, problem.n_var)
+    masks = masks.reshape(-1, 2, problem.n_var)
+    lows, highs = problem.genes.lows, problem.genes.highs
+    for (first, second), mask in zip(genes, masks):
+        children = mating._children(first, second, mask, lows, highs, rng, lambda child: False)
+        assert len(children) == 2
+        for child in children:
+            assert ((child >= lows) & (child <= highs)).all()
+            assert not any((child[m] == p[m]).all() for p, m in zip((first, second), mask))
