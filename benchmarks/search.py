@@ -198,7 +198,11 @@ def main() -> None:
     parser.add_argument("--long", type=int, default=LONG_RUN, help="evaluations of the long run (0: none)")
     parser.add_argument("--plot", type=Path, default=ROOT.parent / "docs" / "img" / "search.png")
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--replot", type=Path, default=None, help="only draw the figure from a --json file")
     args = parser.parse_args()
+    if args.replot:
+        replot(args.replot, args.plot)
+        return
     algorithms = args.algorithms.split(",")
     chosen = instances(args)
     checkpoints = [k for k in CHECKPOINTS if k <= args.budget]
@@ -259,7 +263,6 @@ def main() -> None:
             cells = [f"{np.median(curves[:, i]):.4f} ({curves[:, i].min():.4f})" for i in range(len(checkpoints))]
             print(f"| {algorithm} | " + " | ".join(cells) + f" | {np.median(seconds):.1f} |")
 
-    groups = sorted({i["group"] for i in chosen})
     print("\n### every published map and seed: median (min) fraction\n")
     print("| configuration | " + " | ".join(str(k) for k in checkpoints) + " | reaches paper's final median at |")
     print("|---|" + "---|" * (len(checkpoints) + 1))
@@ -278,31 +281,47 @@ def main() -> None:
         print(f"| {algorithm} | " + " | ".join(cells) + f" | {reach} |")
     print(f"\ntotal {time.perf_counter() - started:.0f} s")
 
+    groups_of = {i["key"]: i["group"] for i in chosen}
     if args.json:
-        args.json.write_text(json.dumps({"checkpoints": checkpoints, "fractions": table}))
+        args.json.write_text(json.dumps({"checkpoints": checkpoints, "fractions": table, "groups": groups_of}))
     if args.plot:
-        import matplotlib
+        plot(args.plot, checkpoints, table, groups_of, algorithms)
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
 
-        fig, axes = plt.subplots(1, len(groups), figsize=(4.5 * len(groups), 3.6), squeeze=False)
-        for ax, group in zip(axes[0], groups):
-            keys = [i["key"] for i in chosen if i["group"] == group]
-            for algorithm in algorithms:
-                curves = np.vstack([table[k][algorithm] for k in keys])
-                ax.plot(checkpoints, np.median(curves, axis=0), marker="o", label=algorithm)
-            ax.set_xscale("log")
-            ax.set_xticks(checkpoints, [str(k) for k in checkpoints])
-            ax.set_title(f"{group} ({len(keys)} instance{'s' if len(keys) > 1 else ''})")
-            ax.set_xlabel("evaluations")
-            ax.grid(alpha=0.3)
-        axes[0][0].set_ylabel("hypervolume / exact or best known")
-        axes[0][0].legend()
-        fig.tight_layout()
-        args.plot.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(args.plot, dpi=120)
-        print(f"figure: {args.plot}")
+def plot(path: Path, checkpoints: list[int], table: dict, groups_of: dict[str, str], algorithms: list[str]) -> None:
+    """Median fraction against evaluations, one panel per instance group."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    groups = sorted(set(groups_of.values()))
+    fig, axes = plt.subplots(1, len(groups), figsize=(4.5 * len(groups), 3.6), squeeze=False)
+    for ax, group in zip(axes[0], groups):
+        keys = [k for k, g in groups_of.items() if g == group]
+        for algorithm in algorithms:
+            curves = np.vstack([table[k][algorithm] for k in keys])
+            ax.plot(checkpoints, np.median(curves, axis=0), marker="o", label=algorithm)
+        ax.set_xscale("log")
+        ax.minorticks_off()
+        ax.set_xticks(checkpoints, [str(k) for k in checkpoints])
+        ax.set_title(f"{group} ({len(keys)} instance{'s' if len(keys) > 1 else ''})")
+        ax.set_xlabel("evaluations")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("hypervolume / exact or best known")
+    axes[0][0].legend()
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    print(f"figure: {path}")
+
+
+def replot(source: Path, path: Path) -> None:
+    """Draw the figure again from a ``--json`` file."""
+    data = json.loads(source.read_text())
+    table = data["fractions"]
+    groups_of = data["groups"]
+    plot(path, data["checkpoints"], table, groups_of, list(next(iter(table.values()))))
 
 
 if __name__ == "__main__":

@@ -253,7 +253,8 @@ def _synthesize(
         )
     search = result.search
     console.print(
-        f"{search.evaluations} policies evaluated in {search.generations} generations "
+        f"{search.evaluations} policies evaluated in {search.generations} generations of "
+        f"{result.settings.algorithm} "
         f"({result.timings.get('search', 0):.1f} s, stopped by {search.stopped_by.value}); "
         f"selected {info['selected']['policy']} (knee)"
     )
