@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from parley_core.search import default
+from parley_core.search import ALGORITHMS, default
 
 SetOption = Annotated[
     list[str] | None,
@@ -59,8 +59,7 @@ AlgorithmOption = Annotated[
     str,
     typer.Option(
         "--algorithm",
-        help="Search configuration: paper (the paper's NSGA-II), ordinal, archive, sms, blend "
-        "(docs/search.md; benchmarks/search.py measures them).",
+        help=f"Search configuration: {', '.join(ALGORITHMS)} (docs/search.md says what each is).",
     ),
 ]
 SEED = default("seed")

@@ -41,13 +41,9 @@ class CachingEvaluator:
     def values(self) -> np.ndarray:
         return np.array(self._values, dtype=float).reshape(-1, self.n_objectives)
 
-    @property
-    def consulted(self) -> np.ndarray:
-        """Per archived policy, the decisions its reachable states consult [n, decisions] bool."""
-        return np.array(self._consulted, dtype=bool).reshape(-1, self.n_decisions)
-
     def rows(self, indices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The policies and consulted masks of archive rows ``indices``."""
+        """The policies of archive rows ``indices`` and the decisions their reachable states
+        consult ([n, decisions] bool)."""
         indices = np.asarray(indices, dtype=np.int64).ravel()
         policies = np.array([self._policies[i] for i in indices], dtype=np.int64).reshape(-1, self.n_decisions)
         masks = np.array([self._consulted[i] for i in indices], dtype=bool).reshape(-1, self.n_decisions)

@@ -9,7 +9,8 @@ first population the baselines and random policies (:func:`~parley_core.search.r
   crossover, creep/reset mutation of consulted decisions, no repeated DTMCs);
 - ``archive``: ``ordinal`` whose parents come from the archive's front half of the time;
 - ``sms``: SMS-EMOA (hypervolume-contribution survival, 10 children a generation) with the
-  same mating as ``archive``.
+  same mating as ``archive``;
+- ``blend``: ``archive`` whose first population's random half is blends of two baselines.
 
 benchmarks/search.py measures them against each other.
 """

@@ -1,4 +1,4 @@
-"""Variation for ordinal integer policies (the ``ordinal`` and ``archive`` configurations).
+"""Variation for ordinal integer policies (every configuration but ``paper``).
 
 A decision of a URC is an ordinal integer (an interval, a threshold): neighbouring values
 give neighbouring behaviour, and most of a policy's decisions are never consulted (on a
@@ -10,7 +10,7 @@ mutation on rounded floats know neither. :class:`OrdinalMating`
   the front is taken from the archive, so it is the archive that should breed);
 - crosses two parents uniformly (each gene from either parent), with ``crossover``;
 - mutates each child in at least one gene among those its parents consult (the archive
-  knows them: :meth:`~parley_core.evaluate.cache.CachingEvaluator.consulted`), one more with
+  knows them: :meth:`~parley_core.evaluate.cache.CachingEvaluator.rows`), one more with
   probability ``extra`` each time; a mutated gene creeps one step up or down with ``creep``,
   else is reset to another value uniformly;
 - and rejects a child that equals a parent on every decision that parent consults (it is
@@ -43,7 +43,6 @@ class OrdinalMating(Mating):
         extra: float = 0.5,
         archive_rate: float = 0.0,
         tries: int = 20,
-        mutation: float = 1.0,
         tournament=binary_tournament,
     ) -> None:
         super().__init__(
@@ -57,7 +56,6 @@ class OrdinalMating(Mating):
         self.creep = creep
         self.extra = extra
         self.archive_rate = archive_rate
-        self.mutation = mutation
         self.tries = tries
         self._front: tuple[int, np.ndarray] = (-1, np.zeros(0, dtype=np.int64))
         self._near: tuple = (-1, None, None)
@@ -152,8 +150,7 @@ class OrdinalMating(Mating):
                     child = np.where(pick, first, second)
                 else:
                     child = parents[len(children)].copy()
-                if self._repeats(child, parents, masks) or rng.random() < self.mutation:
-                    self._mutate(child, genes, lows, highs, rng)
+                self._mutate(child, genes, lows, highs, rng)
                 if not (
                     self._repeats(child, parents, masks) or any((child == c).all() for c in children) or known(child)
                 ):
