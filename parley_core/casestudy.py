@@ -12,6 +12,7 @@ from attrs import field, frozen, validators
 from parley_core.errors import OptionError
 from parley_core.model import SystemModel
 from parley_core.options import convert, parse_assignments
+from parley_core.progress import Reporter
 
 
 class PolicyTable(Mapping[tuple[int, ...], Mapping[str, int]]):
@@ -55,6 +56,11 @@ class CaseStudy:
     """``build(options) -> SystemModel``, called once per run; it raises
     :class:`~parley_core.ParleyError` subclasses for bad input (a missing map file, a map
     without a path...)."""
+    warm_up: Callable[[Any, Reporter], None] | None = None
+    """Optionally, ``warm_up(options, reporter)`` does a build's slow one-off work before
+    ``build`` runs (turtlebot samples its motions from MuJoCo here, once, and caches them),
+    announcing it as a stage of ``reporter`` so the CLI draws a progress bar. ``build``
+    must not depend on it having run: library callers may call ``build`` alone."""
     plot_policy: Callable[[SystemModel, PolicyTable, Path], None] | None = None
     """Optionally draws one policy as a PNG for the run report: ``plot_policy(system, table,
     path)``. A failing plot costs only the plot (the run says why in policy-plot-error.txt)."""

@@ -70,8 +70,10 @@ def prepare(case: CaseStudy, options: Any, reporter: Reporter | None = None) -> 
     """Build the case study's system model and augment it (pruned if the case study asks)."""
     reporter = reporter or NullReporter()
     timings: dict[str, float] = {}
-    reporter.stage("build model")
     with _timed(timings, "build"):
+        if case.warm_up is not None:
+            case.warm_up(options, reporter)
+        reporter.stage("build model")
         system = case.build(options)
     reporter.stage("augment")
     with _timed(timings, "augment"):

@@ -31,9 +31,12 @@ from parley_core import (
     option,
     positive,
 )
+from parley_core.progress import Reporter
 from parley_plugins.turtlebot import published
 from parley_plugins.turtlebot.generator import prism_model
 from parley_plugins.turtlebot.kinematics import simulate
+from parley_plugins.turtlebot.physics import Physics
+from parley_plugins.turtlebot.sampling import Sampling, cached, counts, motions_of, progress_units
 from parley_plugins.turtlebot.world import World, check, parse_cells, shortest_moves
 
 PAPER_OBSTACLES = "0:3,0:4,0:5,1:3,2:3,3:3,4:0,4:1,5:1,4:4,4:6,5:6"
@@ -49,6 +52,12 @@ class TurtlebotOptions:
         None,
         "the paper's models/turtlebot/model.prism: use its Gazebo-sampled motions and controller; default: simulate",
     )
+    motions: str = option(
+        "kinematic",
+        "how to simulate motions: kinematic (an arc per move, 0.4 s) or mujoco (the Waffle in MuJoCo; "
+        "about a minute the first time, then cached)",
+        validators.in_(("kinematic", "mujoco")),
+    )
     repair: bool = option(True, "with model=: read its south moves as meant (the file sends them to the top row)")
     size: int = option(7, "cells per side (simulated motions)", validators.ge(2))
     start: str = option("1:0", "start cell X:Y (simulated motions)")
@@ -56,8 +65,14 @@ class TurtlebotOptions:
     obstacles: str = option(PAPER_OBSTACLES, "obstacle cells X:Y,X:Y,... (simulated motions)")
     left_wheel: float = option(0.99, "left wheel power relative to the right one", _fraction)
     heading_noise: float = option(8.0, "heading error, standard deviation in degrees", validators.ge(0.0))
-    turn_noise: float = option(5.0, "extra heading error per quarter turn, degrees", validators.ge(0.0))
-    distance_noise: float = option(0.05, "error of a move's length, relative standard deviation", validators.ge(0.0))
+    turn_noise: float = option(5.0, "kinematic: extra heading error per quarter turn, degrees", validators.ge(0.0))
+    distance_noise: float = option(
+        0.05, "kinematic: error of a move's length, relative standard deviation", validators.ge(0.0)
+    )
+    wheel_noise: float = option(0.01, "mujoco: each wheel's speed error in a move, relative", validators.ge(0.0))
+    friction: str = option("0.7:1.0", "mujoco: range LOW:HIGH of the floor's friction, drawn per move")
+    speed: float = option(0.22, "mujoco: driving speed, m/s (the Waffle's maximum is 0.26)", positive)
+    timestep: float = option(0.02, "mujoco: seconds per physics step", positive)
     samples: int = option(1000, "Monte Carlo draws per cell, heading and move", positive)
     motion_seed: int = option(0, "seed of the Monte Carlo draws of the motions (the search has its own, --seed)")
     max_period: int = option(5, "longest localisation period (moves)", positive)
@@ -67,6 +82,7 @@ class TurtlebotOptions:
 
 
 SIMULATION_OPTIONS = (
+    "motions",
     "size",
     "start",
     "target",
@@ -77,13 +93,23 @@ SIMULATION_OPTIONS = (
     "distance_noise",
     "samples",
     "motion_seed",
+    "wheel_noise",
+    "friction",
+    "speed",
+    "timestep",
 )
 """The options that shape simulated motions; the paper's model file fixes all of them."""
 
+ONLY = {
+    "kinematic": ("wheel_noise", "friction", "speed", "timestep"),
+    "mujoco": ("turn_noise", "distance_noise"),
+}
+"""The options each kind of simulated motions does not use (changing one is an error)."""
+
 
 def world_of(options: TurtlebotOptions) -> World:
+    defaults = {f.name: f.default for f in attrs.fields(TurtlebotOptions)}
     if options.model is not None:
-        defaults = {f.name: f.default for f in attrs.fields(TurtlebotOptions)}
         changed = [name for name in SIMULATION_OPTIONS if getattr(options, name) != defaults[name]]
         if changed:
             raise OptionError(
@@ -103,6 +129,19 @@ def world_of(options: TurtlebotOptions) -> World:
         source=f"simulated, left wheel {options.left_wheel:g}, motion seed {options.motion_seed}",
     )
     check(world)
+    for name in ONLY[options.motions]:
+        if getattr(options, name) != defaults[name]:
+            raise OptionError(
+                f"option {name} does not apply to motions={options.motions}; drop it or set motions="
+                + ("mujoco" if options.motions == "kinematic" else "kinematic")
+            )
+    if options.motions == "mujoco":
+        sampling = sampling_of(options)
+        world = attrs.evolve(
+            world, source=f"MuJoCo, left wheel {options.left_wheel:g}, motion seed {options.motion_seed}"
+        )
+        table = motions_of(counts(sampling), sampling.samples)
+        return check(attrs.evolve(world, motions=table, plan=shortest_moves(options.size, obstacles, target)))
     motions = simulate(
         options.size,
         obstacles,
@@ -114,6 +153,41 @@ def world_of(options: TurtlebotOptions) -> World:
         seed=options.motion_seed,
     )
     return check(attrs.evolve(world, motions=motions, plan=shortest_moves(options.size, obstacles, target)))
+
+
+def sampling_of(options: TurtlebotOptions) -> Sampling:
+    """What the MuJoCo motion table of ``options`` depends on."""
+    low, sep, high = options.friction.partition(":")
+    try:
+        friction = (float(low), float(high if sep else low))
+    except ValueError:
+        friction = (-1.0, -1.0)
+    if not 0 < friction[0] <= friction[1]:
+        raise OptionError(f"option friction={options.friction!r}: give LOW:HIGH with 0 < LOW <= HIGH, e.g. 0.7:1.0")
+    return Sampling(
+        size=options.size,
+        obstacles=tuple(sorted(parse_cells(options.obstacles, "option obstacles"))),
+        physics=Physics(
+            left_wheel=options.left_wheel,
+            speed=options.speed,
+            wheel_noise=options.wheel_noise,
+            friction=friction,
+            timestep=options.timestep,
+        ),
+        heading_noise=options.heading_noise,
+        samples=options.samples,
+        seed=options.motion_seed,
+    )
+
+
+def warm_up(options: TurtlebotOptions, reporter: Reporter) -> None:
+    """Sample the MuJoCo motion table with a progress bar, unless it is cached."""
+    if options.model is not None or options.motions != "mujoco":
+        return
+    sampling = sampling_of(options)
+    if cached(sampling) is None:
+        reporter.stage("sample motions in MuJoCo", progress_units(sampling))
+        counts(sampling, reporter.advance)
 
 
 def _one_cell(text: str, name: str) -> tuple[int, int]:
@@ -174,6 +248,7 @@ CASE_STUDY = CaseStudy(
     description="TurtleBot3 with a drifting wheel: when to localise, per estimated cell and heading (the paper's RQ4)",
     options_type=TurtlebotOptions,
     build=build,
+    warm_up=warm_up,
     plot_policy=plot_policy,
     quick={"samples": "100", "horizon": "60", "max_period": "3"},
     # 160 of the 196 (xhat, yhat, directionhat) valuations are never consulted: after a move,
