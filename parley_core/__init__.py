@@ -29,6 +29,7 @@ from parley_core.model import (
 )
 from parley_core.options import option, positive, probability
 from parley_core.urc import URC
+from parley_core.validate import Episodes, Simulator
 
 __version__ = "0.1.0"
 
@@ -40,6 +41,7 @@ __all__ = [
     "Decision",
     "DecisionKind",
     "Direction",
+    "Episodes",
     "Family",
     "Front",
     "ModelError",
@@ -51,6 +53,7 @@ __all__ = [
     "PolicyError",
     "PolicyTable",
     "Service",
+    "Simulator",
     "SystemModel",
     "Valued",
     "hookimpl",

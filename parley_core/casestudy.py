@@ -13,6 +13,7 @@ from parley_core.errors import OptionError
 from parley_core.model import SystemModel
 from parley_core.options import convert, parse_assignments
 from parley_core.progress import Reporter
+from parley_core.validate import Simulator
 
 
 class PolicyTable(Mapping[tuple[int, ...], Mapping[str, int]]):
@@ -61,6 +62,9 @@ class CaseStudy:
     ``build`` runs (turtlebot samples its motions from MuJoCo here, once, and caches them),
     announcing it as a stage of ``reporter`` so the CLI draws a progress bar. ``build``
     must not depend on it having run: library callers may call ``build`` alone."""
+    simulator: Simulator | None = None
+    """Optionally, a closed-loop simulator of the system (:class:`parley_core.validate.Simulator`):
+    ``parley validate RUN_DIR`` runs a run's policies on it against Storm's values."""
     plot_policy: Callable[[SystemModel, PolicyTable, Path], None] | None = None
     """Optionally draws one policy as a PNG for the run report: ``plot_policy(system, table,
     path)``. A failing plot costs only the plot (the run says why in policy-plot-error.txt)."""

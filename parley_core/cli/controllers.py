@@ -135,3 +135,62 @@ def _simulated_family(target: Path, policy: Path, props: Path | None):
     if policy.suffix != ".json":
         raise OptionError(f"with a PRISM model, --policy must be a controller file of `parley select` (got {policy})")
     return family_for_controller(target, URC.load(policy), props)
+
+
+@app.command("validate")
+@user_errors
+def validate_command(
+    run_dir: Annotated[Path, typer.Argument(help="A run directory of `parley run` for a case study with a simulator.")],
+    policy: Annotated[
+        str, typer.Option(help="The front policy to run: 'knee' (the knee point) or its name in front.csv (p12).")
+    ] = "knee",
+    episodes: Annotated[int, typer.Option(min=2, help="Closed-loop episodes per policy.")] = 1000,
+    seed: Annotated[int, typer.Option(help="Seed of the simulator.")] = 1,
+    baselines: Annotated[bool, typer.Option(help="Run the run's baselines too.")] = True,
+    json_: JsonOption = False,
+) -> None:
+    """Run a policy (and the baselines) in closed loop on the case study's simulator (turtlebot: MuJoCo) and set
+    the empirical values with 99% intervals next to Storm's; writes RUN_DIR/validation.json and validation.png."""
+    from parley_core.cli.console import RichReporter, stderr
+    from parley_core.validate import plot, validate
+
+    with RichReporter(stderr()) as reporter:
+        result = validate(run_dir, policy, episodes, seed, baselines, reporter)
+        reporter.stage("write report")
+        document = result.to_json()
+        (run_dir / "validation.json").write_text(json.dumps(document, indent=2) + "\n")
+        plot(result, run_dir / "validation.png")
+    if json_:
+        print(json.dumps(document, indent=2))
+        return
+    table = Table(
+        title=f"{episodes} closed-loop episodes a policy ({result.simulator}, seed {seed}) against Storm",
+        title_justify="left",
+    )
+    for column in ("policy", "objective", "closed loop", "99% interval", "Storm", "Storm within"):
+        table.add_column(column, justify="left" if column in ("policy", "objective") else "right")
+    outside = []
+    for p in result.policies:
+        for e in p.estimates:
+            table.add_row(
+                p.policy if p.role == "baseline" else f"{p.policy} (chosen)",
+                e.objective,
+                fmt(e.mean),
+                f"{fmt(e.low)} .. {fmt(e.high)}",
+                fmt(e.storm),
+                "yes" if e.within else "NO",
+            )
+            if not e.within:
+                outside.append(f"{p.policy} {e.objective}")
+    console = Console()
+    console.print(table)
+    for p in result.policies:
+        for note in p.notes:
+            console.print(f"{p.policy}: {note}")
+    if outside:
+        console.print(
+            f"Storm's value lies outside the closed-loop interval for {len(outside)} of "
+            f"{sum(len(p.estimates) for p in result.policies)} estimates ({', '.join(outside[:6])}"
+            f"{', ...' if len(outside) > 6 else ''}): the model's abstraction differs from the simulated system there"
+        )
+    console.print(f"wrote {run_dir / 'validation.json'} and {run_dir / 'validation.png'}")

@@ -26,13 +26,14 @@ from parley_core import (
     OptionError,
     PolicyTable,
     Service,
+    Simulator,
     SystemModel,
     hookimpl,
     option,
     positive,
 )
 from parley_core.progress import Reporter
-from parley_plugins.turtlebot import published
+from parley_plugins.turtlebot import closed_loop, published
 from parley_plugins.turtlebot.generator import prism_model
 from parley_plugins.turtlebot.kinematics import simulate
 from parley_plugins.turtlebot.physics import Physics
@@ -64,6 +65,12 @@ class TurtlebotOptions:
     target: str = option("3:5", "target cell X:Y (simulated motions)")
     obstacles: str = option(PAPER_OBSTACLES, "obstacle cells X:Y,X:Y,... (simulated motions)")
     left_wheel: float = option(0.99, "left wheel power relative to the right one", _fraction)
+    margin: float = option(
+        0.3,
+        "a move starts at least this far (m) from its cell's edges; 1.5: at the centre",
+        validators.ge(0.0),
+        validators.le(1.5),
+    )
     heading_noise: float = option(8.0, "heading error, standard deviation in degrees", validators.ge(0.0))
     turn_noise: float = option(5.0, "kinematic: extra heading error per quarter turn, degrees", validators.ge(0.0))
     distance_noise: float = option(
@@ -88,6 +95,7 @@ SIMULATION_OPTIONS = (
     "target",
     "obstacles",
     "left_wheel",
+    "margin",
     "heading_noise",
     "turn_noise",
     "distance_noise",
@@ -149,14 +157,15 @@ def world_of(options: TurtlebotOptions) -> World:
         heading_noise=options.heading_noise,
         turn_noise=options.turn_noise,
         distance_noise=options.distance_noise,
+        margin=options.margin,
         samples=options.samples,
         seed=options.motion_seed,
     )
     return check(attrs.evolve(world, motions=motions, plan=shortest_moves(options.size, obstacles, target)))
 
 
-def sampling_of(options: TurtlebotOptions) -> Sampling:
-    """What the MuJoCo motion table of ``options`` depends on."""
+def physics_of(options: TurtlebotOptions) -> Physics:
+    """The MuJoCo robot's physics that ``options`` set."""
     low, sep, high = options.friction.partition(":")
     try:
         friction = (float(low), float(high if sep else low))
@@ -164,17 +173,23 @@ def sampling_of(options: TurtlebotOptions) -> Sampling:
         friction = (-1.0, -1.0)
     if not 0 < friction[0] <= friction[1]:
         raise OptionError(f"option friction={options.friction!r}: give LOW:HIGH with 0 < LOW <= HIGH, e.g. 0.7:1.0")
+    return Physics(
+        left_wheel=options.left_wheel,
+        speed=options.speed,
+        wheel_noise=options.wheel_noise,
+        friction=friction,
+        timestep=options.timestep,
+    )
+
+
+def sampling_of(options: TurtlebotOptions) -> Sampling:
+    """What the MuJoCo motion table of ``options`` depends on."""
     return Sampling(
         size=options.size,
         obstacles=tuple(sorted(parse_cells(options.obstacles, "option obstacles"))),
-        physics=Physics(
-            left_wheel=options.left_wheel,
-            speed=options.speed,
-            wheel_noise=options.wheel_noise,
-            friction=friction,
-            timestep=options.timestep,
-        ),
+        physics=physics_of(options),
         heading_noise=options.heading_noise,
+        margin=options.margin,
         samples=options.samples,
         seed=options.motion_seed,
     )
@@ -249,6 +264,11 @@ CASE_STUDY = CaseStudy(
     options_type=TurtlebotOptions,
     build=build,
     warm_up=warm_up,
+    simulator=Simulator(
+        description="the TurtleBot3 Waffle in MuJoCo, closed loop",
+        run=closed_loop.simulate,
+        draw=closed_loop.draw,
+    ),
     plot_policy=plot_policy,
     quick={"samples": "100", "horizon": "60", "max_period": "3"},
     # 160 of the 196 (xhat, yhat, directionhat) valuations are never consulted: after a move,

@@ -258,23 +258,25 @@ class Robot:
         self._pool.close()
 
     def controls(self, turn: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Wheel speeds [n, steps, 2] (rad/s, left and right) of moves that turn by ``turn``
-        radians (counter-clockwise positive; multiples of a quarter turn, 180 degrees turning
-        left) and then drive one cell length, open loop with the calibrated timing, with each
-        wheel's speed noise drawn per move; padded with standing still."""
+        """Wheel speeds [n, steps, 2] (rad/s, left and right) of moves that turn on the spot
+        by ``turn`` radians (counter-clockwise positive, at most half a turn either way) and
+        then drive one cell length, open loop with the calibrated timing (interpolated
+        between no turn, a quarter and a half turn), with each wheel's speed noise drawn per
+        move; padded with standing still."""
         p, r = self.physics, self.robot.wheel_radius
-        quarters = np.rint(np.asarray(turn) / (math.pi / 2)).astype(int)
-        quarters = np.where(quarters == -2, 2, quarters)
-        if np.any(np.abs(quarters) > 2):
-            raise ValueError("a move turns by at most half a turn")
-        steps_of = np.array([self.turn_steps.get(abs(int(q)), 0) for q in (-2, -1, 0, 1, 2)])
-        turn_steps = steps_of[quarters + 2]
+        turn = np.asarray(turn, dtype=float)
+        wrapped = np.remainder(turn + math.pi, 2 * math.pi) - math.pi  # in [-pi, pi)
+        wrapped = np.where(np.isclose(wrapped, -math.pi), math.pi, wrapped)  # half a turn goes left
+        angle, direction = np.abs(wrapped), np.sign(wrapped)
+        turn_steps = np.rint(
+            np.interp(angle, [0.0, math.pi / 2, math.pi], [0.0, self.turn_steps[1], self.turn_steps[2]])
+        ).astype(int)
         pause = int(round(PAUSE / p.timestep))
         steps = int(turn_steps.max(initial=0)) + self.drive_steps + 2 * pause
-        n = len(quarters)
+        n = len(turn)
         noise = 1.0 + rng.normal(0.0, p.wheel_noise, (n, 2))
         out = np.zeros((n, steps, 2))
-        spin = np.sign(quarters)[:, None] * np.array([-1.0, 1.0]) * p.turn_speed / r
+        spin = direction[:, None] * np.array([-1.0, 1.0]) * p.turn_speed / r
         index = np.arange(steps)[None, :]
         turning = index < turn_steps[:, None]
         start = turn_steps[:, None] + pause

@@ -1,0 +1,282 @@
+"""Closed-loop validation: a run's policies on the plugin's own simulator, against Storm.
+
+A case study whose plugin offers a :class:`Simulator` (turtlebot: the Waffle in MuJoCo)
+can run a URC in closed loop on something closer to the real system than the DTMC: the
+URC decides from what the system's controller believes, the simulator's physics decide what
+happens. :func:`validate` runs the chosen front policy and the baselines of a run directory
+for ``episodes`` episodes each and sets the empirical value of each objective, with a 99 %
+confidence interval (Wilson's for a probability, the normal one for a mean), next to
+Storm's value for the same policy (front.csv and baseline.csv hold Storm's values). A Storm
+value outside the interval is a finding about the abstraction, not a defect of either: the
+DTMC forgets what the simulator remembers (where in a cell the robot is).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from attrs import field, frozen
+
+from parley_core.errors import OptionError
+from parley_core.model import SystemModel
+from parley_core.progress import NullReporter, Progress, Reporter
+from parley_core.urc import URC
+
+Z99 = 2.5758293035489004
+"""The standard normal quantile of 0.995."""
+
+
+@frozen(kw_only=True)
+class Episodes:
+    """What a simulator's episodes of one policy gave: per objective, one value per episode
+    (1.0 or 0.0 for a probability objective), notes for the user, and whatever the
+    simulator's ``draw`` needs (trajectories)."""
+
+    values: Mapping[str, np.ndarray] = field(converter=dict)
+    notes: tuple[str, ...] = ()
+    trace: Any = field(default=None, eq=False, repr=False)
+
+
+@frozen(kw_only=True)
+class Simulator:
+    """A plugin's closed-loop simulator (the :class:`~parley_core.CaseStudy` field ``simulator``).
+
+    ``run(system, options, urc, episodes, seed, progress)`` runs the URC in closed loop on
+    the system that ``system`` (built from the run's ``options``) models, ``episodes``
+    times, deterministically for a seed, calling ``progress(n)`` as episodes finish; it
+    returns an :class:`Episodes` with a value per episode for every objective it can
+    estimate (probability objectives as 1.0/0.0). ``draw(system, episodes, axes)``
+    optionally draws the episodes (from above, for a robot) on a matplotlib axes."""
+
+    description: str
+    run: Callable[[SystemModel, Any, URC, int, int, Progress | None], Episodes]
+    draw: Callable[[SystemModel, Episodes, Any], None] | None = None
+
+
+@frozen(kw_only=True)
+class Estimate:
+    """One objective of one policy: the closed-loop mean with its 99 % interval, and Storm's value."""
+
+    objective: str
+    kind: str
+    """``probability`` or ``mean``"""
+    mean: float
+    low: float
+    high: float
+    storm: float
+    episodes: int
+
+    @property
+    def within(self) -> bool:
+        return bool(self.low <= self.storm <= self.high)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "objective": self.objective,
+            "kind": self.kind,
+            "closed_loop": self.mean,
+            "interval99": [self.low, self.high],
+            "storm": self.storm,
+            "episodes": self.episodes,
+            "storm_within_interval": self.within,
+        }
+
+
+@frozen(kw_only=True)
+class PolicyValidation:
+    policy: str
+    role: str
+    """``chosen`` or ``baseline``"""
+    estimates: tuple[Estimate, ...]
+    notes: tuple[str, ...]
+    episodes: Episodes = field(eq=False, repr=False)
+
+
+@frozen(kw_only=True)
+class Validation:
+    run: Path
+    simulator: str
+    episodes: int
+    seed: int
+    policies: tuple[PolicyValidation, ...]
+    system: SystemModel = field(eq=False, repr=False)
+    draw: Callable[[SystemModel, Episodes, Any], None] | None = field(default=None, eq=False, repr=False)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "run": str(self.run),
+            "simulator": self.simulator,
+            "episodes": self.episodes,
+            "seed": self.seed,
+            "policies": [
+                {
+                    "policy": p.policy,
+                    "role": p.role,
+                    "estimates": [e.to_json() for e in p.estimates],
+                    "notes": list(p.notes),
+                }
+                for p in self.policies
+            ],
+        }
+
+
+def wilson(successes: int, n: int) -> tuple[float, float]:
+    """Wilson's 99 % interval of a proportion."""
+    p = successes / n
+    denominator = 1 + Z99**2 / n
+    center = (p + Z99**2 / (2 * n)) / denominator
+    half = Z99 * math.sqrt(p * (1 - p) / n + Z99**2 / (4 * n * n)) / denominator
+    return max(0.0, center - half), min(1.0, center + half)
+
+
+def estimate(objective: str, formula: str, samples: np.ndarray, storm: float) -> Estimate:
+    """The 99 % interval of an objective's per-episode values (a proportion for ``P=?``)."""
+    n = len(samples)
+    mean = float(np.mean(samples))
+    if formula.lstrip().startswith("P"):
+        low, high = wilson(int(round(float(np.sum(samples)))), n)
+        kind = "probability"
+    else:
+        deviation = float(np.std(samples, ddof=1)) if n > 1 else 0.0
+        half = Z99 * deviation / math.sqrt(n)
+        low, high, kind = mean - half, mean + half, "mean"
+    return Estimate(objective=objective, kind=kind, mean=mean, low=low, high=high, storm=storm, episodes=n)
+
+
+def _baselines(run_dir: Path, names: Sequence[str]) -> list[tuple[str, dict[str, int], tuple[float, ...]]]:
+    """(name, decision per service constant, Storm's values) of each uniform baseline of baseline.csv."""
+    path = run_dir / "baseline.csv"
+    if not path.is_file():
+        return []
+    rows = []
+    with open(path) as handle:
+        for row in csv.DictReader(handle):
+            decision = {k: int(v) for k, v in row.items() if k not in ("policy", *names)}
+            rows.append((row["policy"], decision, tuple(float(row[n]) for n in names)))
+    return rows
+
+
+def validate(
+    run_dir: Path,
+    policy: str = "knee",
+    episodes: int = 1000,
+    seed: int = 1,
+    baselines: bool = True,
+    reporter: Reporter | None = None,
+) -> Validation:
+    """Run the chosen policy (``knee``, the run's selection, or a front policy's name) and
+    the baselines of a run directory on the case study's simulator (module docstring)."""
+    from parley_core import rundir
+    from parley_core.plugins import load_registry
+    from parley_core.selection import controller, select
+
+    reporter = reporter or NullReporter()
+    run = rundir.load(run_dir)
+    case_name = run.summary.get("case_study")
+    if not case_name:
+        raise OptionError(f"{run_dir} is a run of `parley synthesize`; validation needs a case study's run")
+    case = load_registry().get(str(case_name))
+    if case.simulator is None:
+        raise OptionError(
+            f"the {case.name} plugin offers no simulator to validate against; case studies with one: turtlebot (MuJoCo)"
+        )
+    options = case.options_from_json(run.summary.get("options", {}))
+    if case.warm_up is not None:
+        case.warm_up(options, reporter)
+    reporter.stage("build model")
+    system = case.build(options)
+    names = [o.name for o in run.objectives]
+    chosen = select(run) if policy == "knee" else run.policy(policy).name
+    jobs: list[tuple[str, str, URC]] = [("chosen", chosen, controller(run, chosen))]
+    if baselines:
+        for name, decision, values in _baselines(run_dir, names):
+            table = {v: dict(decision) for v in {d[2] for d in run.decisions}}
+            urc = URC(
+                observation=run.observation,
+                services=run.services,
+                table=table,
+                left_out=run.left_out,
+                policy=name,
+                values=dict(zip(names, values)),
+            )
+            jobs.append(("baseline", name, urc))
+    results = []
+    for role, name, urc in jobs:
+        reporter.stage(f"closed loop: {name}", episodes)
+        found = case.simulator.run(system, options, urc, episodes, seed, reporter.advance)
+        estimates = []
+        for objective in run.objectives:
+            samples = found.values.get(objective.name)
+            if samples is None:
+                continue
+            estimates.append(
+                estimate(
+                    objective.name, objective.formula, np.asarray(samples, dtype=float), urc.values[objective.name]
+                )
+            )
+        results.append(
+            PolicyValidation(policy=name, role=role, estimates=tuple(estimates), notes=found.notes, episodes=found)
+        )
+    return Validation(
+        run=run_dir,
+        simulator=case.simulator.description,
+        episodes=episodes,
+        seed=seed,
+        policies=tuple(results),
+        system=system,
+        draw=case.simulator.draw,
+    )
+
+
+def plot(validation: Validation, path: Path) -> None:
+    """validation.png: per objective, each policy's closed-loop interval and Storm's value;
+    and the chosen policy's episodes as the simulator draws them."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from parley_core.plotting import save
+
+    objectives = [e.objective for e in validation.policies[0].estimates]
+    panels = len(objectives) + (validation.draw is not None)
+    fig = Figure(figsize=(4.6 * panels, 4.6))
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, panels, squeeze=False)[0]
+    labels = [p.policy for p in validation.policies]
+    for ax, objective in zip(axes, objectives):
+        for i, p in enumerate(validation.policies):
+            found = next(e for e in p.estimates if e.objective == objective)
+            color = "tab:blue" if p.role == "chosen" else "0.45"
+            ax.errorbar(
+                [i],
+                [found.mean],
+                yerr=[[found.mean - found.low], [found.high - found.mean]],
+                fmt="o",
+                color=color,
+                capsize=4,
+                label="closed loop, 99 % interval" if i == 0 else None,
+            )
+            ax.plot(
+                [i - 0.3, i + 0.3],
+                [found.storm] * 2,
+                color="crimson" if not found.within else "tab:green",
+                lw=2,
+                label="Storm (the model)" if i == 0 else None,
+            )
+        ax.set_xticks(range(len(labels)))
+        ax.set_xticklabels(labels, rotation=30, ha="right", fontsize=8)
+        ax.set_title(objective)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0].legend(fontsize=8)
+    if validation.draw is not None:
+        chosen = validation.policies[0]
+        validation.draw(validation.system, chosen.episodes, axes[-1])
+        axes[-1].set_title(f"{chosen.policy}: episodes from above", fontsize=10)
+    fig.suptitle(
+        f"{validation.simulator}: {validation.episodes} episodes a policy (seed {validation.seed})", fontsize=10
+    )
+    save(fig, path)

@@ -1,0 +1,53 @@
+"""The URC in closed loop on the MuJoCo robot, against Storm, where the model is exact."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from parley_core import URC
+from parley_core.testing import storm_values
+from parley_plugins.turtlebot import CASE_STUDY as CASE
+from parley_plugins.turtlebot.closed_loop import simulate
+
+# an ideal robot started at cell centres: every move ends at the next cell's centre, so the
+# sampled table is deterministic and the DTMC is the closed loop, cell for cell
+IDEAL = [
+    "motions=mujoco",
+    "size=4",
+    "start=0:0",
+    "target=2:3",
+    "obstacles=1:1,2:1",
+    "wheel_noise=0",
+    "friction=0.85:0.85",
+    "heading_noise=0",
+    "margin=1.5",
+    "samples=4",
+    "max_period=3",
+]
+
+
+@pytest.mark.parametrize(
+    ("left_wheel", "horizon", "success"),
+    [
+        (1.0, 60, 1.0),  # the energy's horizon cuts the route short; success is unbounded
+        (1.0, 12, 1.0),
+        (0.9, 60, 0.0),  # drifts over the border or into an obstacle on the first move
+    ],
+)
+def test_without_noise_the_closed_loop_is_what_storm_proves(left_wheel, horizon, success, tmp_path, monkeypatch):
+    monkeypatch.setenv("PARLEY_CACHE", str(tmp_path))
+    options = CASE.options([*IDEAL, f"left_wheel={left_wheel}", f"horizon={horizon}"])
+    system = CASE.build(options)
+    world = system.context
+    assert all(len(outcomes) == 1 for outcomes in world.motions.values())  # deterministic
+    valuations = [(x, y, h) for x in range(4) for y in range(4) for h in range(4)]
+    for period in (1, 2, 3):
+        urc = URC(
+            observation=system.observation, services=system.services, table={v: {"c": period} for v in valuations}
+        )
+        storm = storm_values(system.prism, [o.formula for o in system.objectives], {"c": period})
+        episodes = simulate(system, options, urc, episodes=3, seed=period)
+        assert storm[0] == success
+        np.testing.assert_array_equal(episodes.values["success"], [success] * 3)
+        np.testing.assert_allclose(episodes.values["energy"], [storm[1]] * 3, rtol=0, atol=1e-9)
