@@ -190,6 +190,13 @@ def validate(
         case.warm_up(options, reporter)
     reporter.stage("build model")
     system = case.build(options)
+    from parley_core.pipeline import make_family
+
+    if make_family(system, prune=case.prune).prism != run.model:
+        raise OptionError(
+            f"the {case.name} model built from {run_dir}/summary.json's options is not the run's model.prism "
+            "(the plugin changed since the run); rerun `parley run` and validate the new run"
+        )
     names = [o.name for o in run.objectives]
     chosen = select(run) if policy == "knee" else run.policy(policy).name
     jobs: list[tuple[str, str, URC]] = [("chosen", chosen, controller(run, chosen))]

@@ -79,7 +79,12 @@ class TurtlebotOptions:
     wheel_noise: float = option(0.01, "mujoco: each wheel's speed error in a move, relative", validators.ge(0.0))
     friction: str = option("0.7:1.0", "mujoco: range LOW:HIGH of the floor's friction, drawn per move")
     speed: float = option(0.22, "mujoco: driving speed, m/s (the Waffle's maximum is 0.26)", positive)
-    timestep: float = option(0.02, "mujoco: seconds per physics step", positive)
+    timestep: float = option(0.025, "mujoco: seconds per physics step", positive)
+    heading_memory: bool = option(
+        False,
+        "mujoco: motions by the believed heading and the moves since the last localisation, "
+        "over which the heading error adds up (see docs/turtlebot.md)",
+    )
     samples: int = option(1000, "Monte Carlo draws per cell, heading and move", positive)
     motion_seed: int = option(0, "seed of the Monte Carlo draws of the motions (the search has its own, --seed)")
     max_period: int = option(5, "longest localisation period (moves)", positive)
@@ -105,11 +110,12 @@ SIMULATION_OPTIONS = (
     "friction",
     "speed",
     "timestep",
+    "heading_memory",
 )
 """The options that shape simulated motions; the paper's model file fixes all of them."""
 
 ONLY = {
-    "kinematic": ("wheel_noise", "friction", "speed", "timestep"),
+    "kinematic": ("wheel_noise", "friction", "speed", "timestep", "heading_memory"),
     "mujoco": ("turn_noise", "distance_noise"),
 }
 """The options each kind of simulated motions does not use (changing one is an error)."""
@@ -149,7 +155,10 @@ def world_of(options: TurtlebotOptions) -> World:
             world, source=f"MuJoCo, left wheel {options.left_wheel:g}, motion seed {options.motion_seed}"
         )
         table = motions_of(counts(sampling), sampling.samples)
-        return check(attrs.evolve(world, motions=table, plan=shortest_moves(options.size, obstacles, target)))
+        plan = shortest_moves(options.size, obstacles, target)
+        if sampling.memory:
+            return check(attrs.evolve(world, motions={}, remembered=table, plan=plan))
+        return check(attrs.evolve(world, motions=table, plan=plan))
     motions = simulate(
         options.size,
         obstacles,
@@ -192,6 +201,7 @@ def sampling_of(options: TurtlebotOptions) -> Sampling:
         margin=options.margin,
         samples=options.samples,
         seed=options.motion_seed,
+        memory=options.max_period if options.heading_memory else 0,
     )
 
 

@@ -14,8 +14,9 @@ per move do:
 2. the URC decides the localisation period for the estimate (cell and the move's heading);
    once the move counter reaches it, the localisation service reads the simulator's true
    pose into the estimate at ``localisation_cost``: its cell and the nearest of the four
-   headings for the DTMC's variables, the exact yaw for the next turn (so a localisation
-   also corrects the heading error that the weak wheel accumulates); a decision at a valuation the URC was not synthesized for (a
+   headings for the DTMC's variables, and for the next turn the yaw, with a Gaussian error
+   of ``heading_noise`` degrees (the start pose's yaw has the same error); so a
+   localisation also corrects the heading error that the weak wheel accumulates; a decision at a valuation the URC was not synthesized for (a
    cell the model never reaches) localises, and the episode's notes count it;
 3. a crash (the chassis touched an obstacle) or leaving the area ends the episode, after
    that move's localisation decision (which the DTMC also takes and pays for).
@@ -150,7 +151,7 @@ def run_episodes(
             estimate[chosen, 0] = cell_x[localise]
             estimate[chosen, 1] = cell_y[localise]
             estimate[chosen, 2] = true_heading[localise]
-            believed[chosen] = moved.poses[localise, 2]
+            believed[chosen] = moved.poses[localise, 2] + rng.normal(0.0, math.radians(heading_noise), len(chosen))
             step[chosen] = 1
             step[active[~localise]] += 1
             endings[active[moved.crashed]] = "crashed"

@@ -7,6 +7,10 @@ same values on both (scripts/check_turtlebot.py compares them with Storm):
   outcome from the motion table of the true cell and heading: a neighboring cell and new
   heading, ``crashed`` or ``out`` (left the area), after which the robot stays where it
   was and only idles (``stuck``). A cell without table entries (an obstacle) has no move.
+  With heading memory (``World.remembered``) the table is that of the true cell, the
+  *believed* heading ``directionhat`` and the move counter ``step`` instead: the robot
+  turns from the heading it believes, and its true heading's error grows with the moves
+  since the last localisation.
 - ``Controller`` (the UAC): one move per estimated cell (xhat, yhat), none at the target.
 - ``Knowledge``: the estimate (xhat, yhat, directionhat), updated as if every move went as
   commanded, and the move counter ``step`` (1 after a localisation); ``localise``
@@ -50,6 +54,16 @@ def prism_model(world: World, *, max_period: int, move_cost: float, localisation
             updates=[Update(assignments=_assignments(outcome, x, y), probability=p) for outcome, p in outcomes],
         )
         for (x, y, heading, move), outcomes in sorted(world.motions.items(), key=lambda item: _order(item[0]))
+    ]
+    robot_commands += [
+        Command(
+            action=move,
+            guard=f"x={x} & y={y} & directionhat={believed} & step={step}",
+            updates=[Update(assignments=_assignments(outcome, x, y), probability=p) for outcome, p in outcomes],
+        )
+        for (x, y, believed, move, step), outcomes in sorted(
+            (world.remembered or {}).items(), key=lambda item: (*_order(item[0][:4]), item[0][4])
+        )
     ]
     robot_commands.append(Command(action="stuck", guard="crashed=1 | out=1"))
     robot = Module(

@@ -39,7 +39,7 @@ import numpy as np
 from attrs import asdict, frozen
 
 from parley_plugins.turtlebot.physics import CELL, Physics, Robot, Waffle
-from parley_plugins.turtlebot.world import CRASH, HEADINGS, OUT, Cell, Motions, Outcome
+from parley_plugins.turtlebot.world import CRASH, HEADINGS, OUT, Cell, Outcome
 
 ANGLE = {"north": math.pi / 2, "east": 0.0, "south": -math.pi / 2, "west": math.pi}
 """Yaw of each heading (x east, y north)."""
@@ -48,9 +48,9 @@ TURNS = (0.0, math.pi / 2, -math.pi / 2, math.pi)
 """The angles a move can turn by (counter-clockwise): straight on, left, right, about."""
 
 CHECK_EVERY = 2
-"""The footprint is tested at every second step of a path (0.9 cm at 0.22 m/s and 20 ms)."""
+"""The footprint is tested at every second step of a path (1.1 cm at 0.22 m/s and 25 ms)."""
 
-VERSION = 1
+VERSION = 2
 """Bumped when the simulation changes, so that cached tables are recomputed."""
 
 
@@ -66,6 +66,10 @@ class Sampling:
     margin: float = 0.3
     samples: int = 1000
     seed: int = 0
+    memory: int = 0
+    """With heading memory: the longest localisation period; the table is then sampled per
+    believed heading and per number of moves since the last localisation, 1..memory
+    (:func:`sample`). 0: the paper's table, per true heading."""
 
     def key(self) -> str:
         import mujoco
@@ -154,16 +158,26 @@ def classify(
     return np.where(first_crash < first_out, -2, code)
 
 
-def sample(
-    sampling: Sampling, progress: Callable[[int], None] | None = None
-) -> dict[tuple[int, int, int, str], dict[int, int]]:
-    """The counts of outcome codes per (x, y, true heading, move): ``len(TURNS)`` units of
-    progress for the trajectories, then one per free cell."""
+def sample(sampling: Sampling, progress: Callable[[int], None] | None = None) -> dict[tuple, dict[int, int]]:
+    """The counts of outcome codes per (x, y, true heading, move), or with heading memory per
+    (x, y, believed heading, move, moves since the last localisation): ``len(TURNS)`` units
+    of progress for the trajectories, then one per free cell.
+
+    Without memory, a move starts facing its true heading with a Gaussian error of
+    ``heading_noise`` degrees, which it also believes it faces exactly. With memory, the
+    error of the true yaw from the believed heading after ``j`` moves since a localisation
+    is that of the localisation (Gaussian, ``heading_noise``) plus the heading errors of
+    ``j - 1`` moves drawn from the trajectories (of any turning angle): open-loop turns do
+    not correct it, so the weak wheel's drift adds up."""
     rng = np.random.default_rng(sampling.seed)
     pool = trajectories(sampling, rng, progress)
     obstacles = set(sampling.obstacles)
-    counts: dict[tuple[int, int, int, str], dict[int, int]] = {}
+    counts: dict[tuple, dict[int, int]] = {}
     n, m = sampling.samples, sampling.margin
+    drift = np.concatenate(
+        [np.remainder(p[:, -1, 2] - t + math.pi, 2 * math.pi) - math.pi for t, p in pool.paths.items()]
+    )
+    spread = math.radians(sampling.heading_noise)
     for x in range(sampling.size):
         for y in range(sampling.size):
             if (x, y) in obstacles:
@@ -173,17 +187,22 @@ def sample(
                     turn = math.remainder(ANGLE[move] - ANGLE[heading_name], 2 * math.pi)
                     turn = math.pi if abs(abs(turn) - math.pi) < 1e-9 else turn
                     paths = pool.paths[min(TURNS, key=lambda t: abs(t - turn))]
-                    starts = np.column_stack(
-                        [
-                            (x + rng.uniform(m / CELL, 1 - m / CELL, n)) * CELL,
-                            (y + rng.uniform(m / CELL, 1 - m / CELL, n)) * CELL,
-                            ANGLE[heading_name] + rng.normal(0.0, math.radians(sampling.heading_noise), n),
-                        ]
-                    )
-                    order = rng.permutation(n)
-                    codes = classify(paths[order], starts, (x, y), sampling.size, obstacles, sampling.robot)
-                    values, found = np.unique(codes, return_counts=True)
-                    counts[(x, y, heading, move)] = dict(zip(values.tolist(), found.tolist()))
+                    for step in range(1, sampling.memory + 1) if sampling.memory else (0,):
+                        error = rng.normal(0.0, spread, n)
+                        for _ in range(step - 1):
+                            error += drift[rng.integers(0, len(drift), n)]
+                        starts = np.column_stack(
+                            [
+                                (x + rng.uniform(m / CELL, 1 - m / CELL, n)) * CELL,
+                                (y + rng.uniform(m / CELL, 1 - m / CELL, n)) * CELL,
+                                ANGLE[heading_name] + error,
+                            ]
+                        )
+                        order = rng.permutation(n)
+                        codes = classify(paths[order], starts, (x, y), sampling.size, obstacles, sampling.robot)
+                        values, found = np.unique(codes, return_counts=True)
+                        key = (x, y, heading, move, step) if sampling.memory else (x, y, heading, move)
+                        counts[key] = dict(zip(values.tolist(), found.tolist()))
             if progress:
                 progress(1)
     return counts
@@ -194,7 +213,7 @@ def progress_units(sampling: Sampling) -> int:
     return len(TURNS) + sampling.size**2 - len(set(sampling.obstacles))
 
 
-def motions_of(counts: dict[tuple[int, int, int, str], dict[int, int]], samples: int) -> Motions:
+def motions_of(counts: dict[tuple, dict[int, int]], samples: int) -> dict[tuple, tuple[tuple[Outcome, float], ...]]:
     """The motion table (probabilities) of the counts."""
     table = {}
     for key, found in counts.items():
@@ -225,7 +244,7 @@ def cache_path(sampling: Sampling) -> Path:
     return cache_directory() / f"motions-{sampling.key()}.json"
 
 
-def cached(sampling: Sampling) -> dict[tuple[int, int, int, str], dict[int, int]] | None:
+def cached(sampling: Sampling) -> dict[tuple, dict[int, int]] | None:
     """The counts stored for ``sampling``, or None."""
     path = cache_path(sampling)
     try:
@@ -233,14 +252,14 @@ def cached(sampling: Sampling) -> dict[tuple[int, int, int, str], dict[int, int]
     except (OSError, ValueError):
         return None
     return {
-        (int(x), int(y), int(h), str(move)): {int(code): int(count) for code, count in found}
-        for x, y, h, move, found in data["counts"]
+        (int(key[0]), int(key[1]), int(key[2]), str(key[3]), *(int(k) for k in key[4:])): {
+            int(code): int(count) for code, count in found
+        }
+        for *key, found in data["counts"]
     }
 
 
-def counts(
-    sampling: Sampling, progress: Callable[[int], None] | None = None
-) -> dict[tuple[int, int, int, str], dict[int, int]]:
+def counts(sampling: Sampling, progress: Callable[[int], None] | None = None) -> dict[tuple, dict[int, int]]:
     """The counts for ``sampling``: from the cache, else sampled and stored (written to a
     temporary file first, so an interrupted run leaves no broken table)."""
     found = cached(sampling)
@@ -252,7 +271,7 @@ def counts(
     data = {
         "sampling": json.loads(json.dumps(asdict(sampling, recurse=True), default=list)),
         "samples": sampling.samples,
-        "counts": [[x, y, h, move, sorted(found.items())] for (x, y, h, move), found in sorted(result.items())],
+        "counts": [[*key, sorted(found.items())] for key, found in sorted(result.items())],
     }
     temporary = path.with_suffix(f".{os.getpid()}.tmp")
     temporary.write_text(json.dumps(data))

@@ -42,6 +42,11 @@ Key = tuple[int, int, int, str]
 
 Motions = Mapping[Key, tuple[tuple[Outcome, float], ...]]
 
+MemoryKey = tuple[int, int, int, str, int]
+"""(x, y, *believed* heading, commanded move, moves since the last localisation)."""
+
+Remembered = Mapping[MemoryKey, tuple[tuple[Outcome, float], ...]]
+
 
 @frozen(kw_only=True)
 class World:
@@ -54,6 +59,10 @@ class World:
     motions: Motions = field(repr=False)
     plan: Mapping[Cell, str] = field(repr=False)
     source: str = "generated"
+    remembered: Remembered | None = field(default=None, repr=False)
+    """With heading memory (MuJoCo motions, ``heading_memory=true``): the motions by true
+    cell, *believed* heading, move and the moves since the last localisation, over which
+    the weak wheel's heading error accumulates; ``motions`` is then empty."""
 
 
 def shortest_moves(size: int, obstacles: frozenset[Cell], target: Cell) -> dict[Cell, str]:
@@ -113,7 +122,8 @@ def check(world: World) -> World:
         raise OptionError(
             f"no obstacle-free path joins the start {world.start} and the target {world.target}; move or remove obstacles"
         )
-    for (x, y, _heading, move), outcomes in world.motions.items():
+    tables = [world.motions.items(), (world.remembered or {}).items()]
+    for (x, y, _heading, move, *_), outcomes in (entry for table in tables for entry in table):
         for outcome, _ in outcomes:
             nx, ny = x + outcome.dx, y + outcome.dy
             if outcome.kind == "move" and not (0 <= nx < world.size and 0 <= ny < world.size):

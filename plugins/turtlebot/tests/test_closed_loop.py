@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import csv
+import json
+
 import numpy as np
 import pytest
 
@@ -51,3 +54,53 @@ def test_without_noise_the_closed_loop_is_what_storm_proves(left_wheel, horizon,
         assert storm[0] == success
         np.testing.assert_array_equal(episodes.values["success"], [success] * 3)
         np.testing.assert_allclose(episodes.values["energy"], [storm[1]] * 3, rtol=0, atol=1e-9)
+
+
+def test_parley_validate_writes_intervals_next_to_storms_values(tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from parley_core.cli import app
+
+    monkeypatch.setenv("PARLEY_CACHE", str(tmp_path / "cache"))
+    runner = CliRunner()
+    small = ["--set", "motions=mujoco", "--set", "size=4", "--set", "start=0:0", "--set", "target=3:3"]
+    small += ["--set", "obstacles=1:1,2:2", "--set", "samples=20", "--set", "max_period=3", "--set", "horizon=45"]
+    out = tmp_path / "run"
+    result = runner.invoke(
+        app, ["run", "turtlebot", *small, "--population", "8", "--generations", "2", "--out", str(out)]
+    )
+    assert result.exit_code == 0, result.stderr
+    result = runner.invoke(app, ["validate", str(out), "--episodes", "30", "--seed", "2"])
+    assert result.exit_code == 0, result.stderr
+    document = json.loads((out / "validation.json").read_text())
+    assert (out / "validation.png").stat().st_size > 10_000
+    roles = [p["role"] for p in document["policies"]]
+    assert roles == ["chosen", "baseline", "baseline", "baseline"]  # the knee and period-1..3
+    front = {row["policy"]: row for row in csv.DictReader(open(out / "front.csv"))}
+    chosen = document["policies"][0]
+    for estimate in chosen["estimates"]:
+        assert estimate["episodes"] == 30
+        assert estimate["storm"] == pytest.approx(float(front[chosen["policy"]][estimate["objective"]]), rel=1e-12)
+        low, high = estimate["interval99"]
+        assert low <= estimate["closed_loop"] <= high
+    assert "Storm" in result.stdout
+    # the same seed gives the same episodes
+    again = runner.invoke(app, ["validate", str(out), "--episodes", "30", "--seed", "2", "--json"])
+    assert json.loads(again.stdout)["policies"] == document["policies"]
+
+
+def test_validate_says_what_is_wrong(tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from parley_core.cli import app
+
+    monkeypatch.setenv("PARLEY_CACHE", str(tmp_path / "cache"))
+    runner = CliRunner()
+    result = runner.invoke(app, ["validate", str(tmp_path / "nowhere")])
+    assert result.exit_code == 2 and "does not exist" in result.stderr
+    out = tmp_path / "ids"
+    result = runner.invoke(app, ["run", "web_ids", "--population", "6", "--generations", "1", "--out", str(out)])
+    assert result.exit_code == 0, result.stderr
+    result = runner.invoke(app, ["validate", str(out)])
+    assert result.exit_code == 2 and "offers no simulator" in result.stderr
+    assert "Traceback" not in result.stderr
