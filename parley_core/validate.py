@@ -169,7 +169,8 @@ def validate(
     baselines: bool = True,
     reporter: Reporter | None = None,
 ) -> Validation:
-    """Run the chosen policy (``knee``, the run's selection, or a front policy's name) and
+    """Run the chosen policy (``knee``, a front policy's name, or its row in front.csv
+    counting from 1) and
     the baselines of a run directory on the case study's simulator (module docstring)."""
     from parley_core import rundir
     from parley_core.plugins import load_registry
@@ -198,7 +199,17 @@ def validate(
             "(the plugin changed since the run); rerun `parley run` and validate the new run"
         )
     names = [o.name for o in run.objectives]
-    chosen = select(run) if policy == "knee" else run.policy(policy).name
+    if policy == "knee":
+        chosen = select(run)
+    elif policy.isdigit():
+        row = int(policy)
+        if not 1 <= row <= len(run.front.policies):
+            raise OptionError(
+                f"--policy {policy}: front.csv has rows 1..{len(run.front.policies)}; give a row, a name or knee"
+            )
+        chosen = run.front.policies[row - 1].name
+    else:
+        chosen = run.policy(policy).name
     jobs: list[tuple[str, str, URC]] = [("chosen", chosen, controller(run, chosen))]
     if baselines:
         for name, decision, values in _baselines(run_dir, names):

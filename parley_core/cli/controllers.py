@@ -142,7 +142,10 @@ def _simulated_family(target: Path, policy: Path, props: Path | None):
 def validate_command(
     run_dir: Annotated[Path, typer.Argument(help="A run directory of `parley run` for a case study with a simulator.")],
     policy: Annotated[
-        str, typer.Option(help="The front policy to run: 'knee' (the knee point) or its name in front.csv (p12).")
+        str,
+        typer.Option(
+            help="The front policy to run: 'knee' (the knee point), its name in front.csv (p12) or its row there (1: the first)."
+        ),
     ] = "knee",
     episodes: Annotated[int, typer.Option(min=2, help="Closed-loop episodes per policy.")] = 1000,
     seed: Annotated[int, typer.Option(help="Seed of the simulator.")] = 1,

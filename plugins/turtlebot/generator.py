@@ -23,6 +23,8 @@ Rewards "energy": ``move_cost`` per move, ``localisation_cost`` per localisation
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 from parley_core.prism.writer import (
     Command,
     Constant,
@@ -51,7 +53,7 @@ def prism_model(world: World, *, max_period: int, move_cost: float, localisation
         Command(
             action=move,
             guard=f"x={x} & y={y} & direction={heading}",
-            updates=[Update(assignments=_assignments(outcome, x, y), probability=p) for outcome, p in outcomes],
+            updates=[Update(assignments=_assignments(outcome, x, y), probability=exact(p)) for outcome, p in outcomes],
         )
         for (x, y, heading, move), outcomes in sorted(world.motions.items(), key=lambda item: _order(item[0]))
     ]
@@ -59,7 +61,7 @@ def prism_model(world: World, *, max_period: int, move_cost: float, localisation
         Command(
             action=move,
             guard=f"x={x} & y={y} & directionhat={believed} & step={step}",
-            updates=[Update(assignments=_assignments(outcome, x, y), probability=p) for outcome, p in outcomes],
+            updates=[Update(assignments=_assignments(outcome, x, y), probability=exact(p)) for outcome, p in outcomes],
         )
         for (x, y, believed, move, step), outcomes in sorted(
             (world.remembered or {}).items(), key=lambda item: (*_order(item[0][:4]), item[0][4])
@@ -145,6 +147,18 @@ def prism_model(world: World, *, max_period: int, move_cost: float, localisation
         ],
     )
     return program.render()
+
+
+def exact(probability: float) -> str:
+    """A probability as PRISM text: ``count/samples`` where it is one (a sampled table's
+    ``7/3000``), else the float as written. Storm reads a decimal as an exact rational
+    (``0.00023333333333333333`` is 23333333333333333/10^20), and the products of such
+    rationals in a large model overflow its 64-bit integers; small fractions do not, and
+    they sum to exactly 1."""
+    fraction = Fraction(probability).limit_denominator(1_000_000)
+    if float(fraction) == probability:
+        return str(fraction.numerator) if fraction.denominator == 1 else f"{fraction.numerator}/{fraction.denominator}"
+    return repr(probability)
 
 
 def _assignments(outcome: Outcome, x: int, y: int) -> dict[str, str]:

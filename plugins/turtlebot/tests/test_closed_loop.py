@@ -87,6 +87,11 @@ def test_parley_validate_writes_intervals_next_to_storms_values(tmp_path, monkey
     # the same seed gives the same episodes
     again = runner.invoke(app, ["validate", str(out), "--episodes", "30", "--seed", "2", "--json"])
     assert json.loads(again.stdout)["policies"] == document["policies"]
+    first = next(iter(front))
+    by_row = runner.invoke(app, ["validate", str(out), "--policy", "1", "--episodes", "5", "--no-baselines", "--json"])
+    assert [p["policy"] for p in json.loads(by_row.stdout)["policies"]] == [first]
+    wrong = runner.invoke(app, ["validate", str(out), "--policy", "100000"])
+    assert wrong.exit_code == 2 and "front.csv has rows 1.." in wrong.stderr
 
 
 def test_validate_says_what_is_wrong(tmp_path, monkeypatch):

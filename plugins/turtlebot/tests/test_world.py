@@ -172,3 +172,14 @@ def test_a_table_that_depends_on_the_estimated_heading_is_refused():
     changed = text[:start] + f"{float(first) / 2}:" + rest + f" +\n  {float(first) / 2}:(out'=1)" + text[end:]
     with pytest.raises(OptionError, match="depends on the estimated heading"):
         published.parse(changed)
+
+
+def test_sampled_probabilities_are_written_as_fractions_storm_can_multiply():
+    from parley_core import testing
+    from parley_plugins.turtlebot.generator import exact
+
+    assert exact(7 / 3000) == "7/3000" and exact(1.0) == "1" and exact(0.0123) == "123/10000"
+    assert exact(0.123456789) == "0.123456789"  # not a small fraction: as written
+    # 3,001 draws: decimals such as 0.000333222... made the augmented model overflow Storm's integers
+    fam = testing.family("turtlebot", ["size=4", "start=0:0", "target=3:3", "obstacles=1:1", "samples=3001"])
+    assert "/ 3001)" in fam.prism  # the augmented text keeps the fractions
