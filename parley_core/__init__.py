@@ -28,8 +28,8 @@ from parley_core.model import (
     Valued,
 )
 from parley_core.options import option, positive, probability
+from parley_core.simulator import Episodes, Simulator
 from parley_core.urc import URC
-from parley_core.validate import Episodes, Simulator
 
 __version__ = "0.1.0"
 

@@ -13,7 +13,7 @@ from parley_core.errors import OptionError
 from parley_core.model import SystemModel
 from parley_core.options import convert, parse_assignments
 from parley_core.progress import Reporter
-from parley_core.validate import Simulator
+from parley_core.simulator import Simulator
 
 
 class PolicyTable(Mapping[tuple[int, ...], Mapping[str, int]]):
@@ -63,7 +63,7 @@ class CaseStudy:
     announcing it as a stage of ``reporter`` so the CLI draws a progress bar. ``build``
     must not depend on it having run: library callers may call ``build`` alone."""
     simulator: Simulator | None = None
-    """Optionally, a closed-loop simulator of the system (:class:`parley_core.validate.Simulator`):
+    """Optionally, a closed-loop simulator of the system (:class:`parley_core.simulator.Simulator`):
     ``parley validate RUN_DIR`` runs a run's policies on it against Storm's values."""
     plot_policy: Callable[[SystemModel, PolicyTable, Path], None] | None = None
     """Optionally draws one policy as a PNG for the run report: ``plot_policy(system, table,

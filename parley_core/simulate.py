@@ -30,9 +30,8 @@ from parley_core.evaluate.storm import StormChecker, StormTask
 from parley_core.model import Family
 from parley_core.prism import program as prism
 from parley_core.prism.properties import Shape, shape
+from parley_core.simulator import Z99, wilson
 from parley_core.urc import URC
-
-Z99 = 2.5758293035489004
 
 _Reach = tuple[Literal["reach"], str, np.ndarray, int | None, float]
 """A probability to estimate: objective, phi states, step bound (None: none), checked value."""
@@ -64,14 +63,6 @@ def family_for_controller(model: Path, controller: URC, props: Path) -> Family:
 
     system = system_from_file(model, controller.services, [",".join(controller.observation)], props)
     return make_family(system, prune=True)
-
-
-def _wilson(successes: int, n: int) -> tuple[float, float]:
-    p = successes / n
-    denominator = 1 + Z99**2 / n
-    center = (p + Z99**2 / (2 * n)) / denominator
-    half = Z99 * math.sqrt(p * (1 - p) / n + Z99**2 / (4 * n * n)) / denominator
-    return center - half, center + half
 
 
 def simulate(
@@ -160,7 +151,7 @@ def simulate(
             continue
         i = active.index(plan)
         if plan[0] == "reach":
-            low, high = _wilson(int(hits[i]), episodes)
+            low, high = wilson(int(hits[i]), episodes)
             results.append(
                 Estimate(
                     objective=plan[1],

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -24,38 +24,9 @@ from attrs import field, frozen
 
 from parley_core.errors import OptionError
 from parley_core.model import SystemModel
-from parley_core.progress import NullReporter, Progress, Reporter
+from parley_core.progress import NullReporter, Reporter
+from parley_core.simulator import Z99, Episodes, wilson
 from parley_core.urc import URC
-
-Z99 = 2.5758293035489004
-"""The standard normal quantile of 0.995."""
-
-
-@frozen(kw_only=True)
-class Episodes:
-    """What a simulator's episodes of one policy gave: per objective, one value per episode
-    (1.0 or 0.0 for a probability objective), notes for the user, and whatever the
-    simulator's ``draw`` needs (trajectories)."""
-
-    values: Mapping[str, np.ndarray] = field(converter=dict)
-    notes: tuple[str, ...] = ()
-    trace: Any = field(default=None, eq=False, repr=False)
-
-
-@frozen(kw_only=True)
-class Simulator:
-    """A plugin's closed-loop simulator (the :class:`~parley_core.CaseStudy` field ``simulator``).
-
-    ``run(system, options, urc, episodes, seed, progress)`` runs the URC in closed loop on
-    the system that ``system`` (built from the run's ``options``) models, ``episodes``
-    times, deterministically for a seed, calling ``progress(n)`` as episodes finish; it
-    returns an :class:`Episodes` with a value per episode for every objective it can
-    estimate (probability objectives as 1.0/0.0). ``draw(system, episodes, axes)``
-    optionally draws the episodes (from above, for a robot) on a matplotlib axes."""
-
-    description: str
-    run: Callable[[SystemModel, Any, URC, int, int, Progress | None], Episodes]
-    draw: Callable[[SystemModel, Episodes, Any], None] | None = None
 
 
 @frozen(kw_only=True)
@@ -123,15 +94,6 @@ class Validation:
                 for p in self.policies
             ],
         }
-
-
-def wilson(successes: int, n: int) -> tuple[float, float]:
-    """Wilson's 99 % interval of a proportion."""
-    p = successes / n
-    denominator = 1 + Z99**2 / n
-    center = (p + Z99**2 / (2 * n)) / denominator
-    half = Z99 * math.sqrt(p * (1 - p) / n + Z99**2 / (4 * n * n)) / denominator
-    return max(0.0, center - half), min(1.0, center + half)
 
 
 def estimate(objective: str, formula: str, samples: np.ndarray, storm: float) -> Estimate:
