@@ -23,36 +23,19 @@ from typing import Literal
 import numpy as np
 import stormpy
 import stormpy.simulator as storm_simulator
-from attrs import frozen
 
 from parley_core.errors import ModelError
 from parley_core.evaluate.storm import StormChecker, StormTask
 from parley_core.model import Family
 from parley_core.prism import program as prism
 from parley_core.prism.properties import Shape, shape
-from parley_core.simulator import Z99, wilson
+from parley_core.simulator import Z99, Estimate, wilson
 from parley_core.urc import URC
 
 _Reach = tuple[Literal["reach"], str, np.ndarray, int | None, float]
 """A probability to estimate: objective, phi states, step bound (None: none), checked value."""
 _Reward = tuple[Literal["reward"], str, int, int, float]
 """A mean reward to estimate: objective, reward model index, steps, checked value."""
-
-
-@frozen(kw_only=True)
-class Estimate:
-    objective: str
-    kind: str
-    mean: float
-    low: float
-    high: float
-    checked: float
-    episodes: int
-    cut: int = 0
-
-    @property
-    def agrees(self) -> bool:
-        return bool(self.low <= self.checked <= self.high)
 
 
 def family_for_controller(model: Path, controller: URC, props: Path) -> Family:

@@ -56,3 +56,24 @@ def wilson(successes: int, n: int) -> tuple[float, float]:
     center = (p + Z99**2 / (2 * n)) / denominator
     half = Z99 * math.sqrt(p * (1 - p) / n + Z99**2 / (4 * n * n)) / denominator
     return max(0.0, center - half), min(1.0, center + half)
+
+
+@frozen(kw_only=True)
+class Estimate:
+    """One objective of one policy: the simulated mean with its 99 % interval, the value
+    model checking gives (``checked``), and episodes cut short (``parley simulate``)."""
+
+    objective: str
+    kind: str
+    """``probability``, ``mean`` or ``mean reward``"""
+    mean: float
+    low: float
+    high: float
+    checked: float
+    episodes: int
+    cut: int = 0
+
+    @property
+    def agrees(self) -> bool:
+        """The checked value lies in the interval."""
+        return bool(self.low <= self.checked <= self.high)

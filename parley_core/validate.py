@@ -25,37 +25,21 @@ from attrs import field, frozen
 from parley_core.errors import OptionError
 from parley_core.model import SystemModel
 from parley_core.progress import NullReporter, Reporter
-from parley_core.simulator import Z99, Episodes, wilson
+from parley_core.simulator import Z99, Episodes, Estimate, wilson
 from parley_core.urc import URC
 
 
-@frozen(kw_only=True)
-class Estimate:
-    """One objective of one policy: the closed-loop mean with its 99 % interval, and Storm's value."""
-
-    objective: str
-    kind: str
-    """``probability`` or ``mean``"""
-    mean: float
-    low: float
-    high: float
-    storm: float
-    episodes: int
-
-    @property
-    def within(self) -> bool:
-        return bool(self.low <= self.storm <= self.high)
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "objective": self.objective,
-            "kind": self.kind,
-            "closed_loop": self.mean,
-            "interval99": [self.low, self.high],
-            "storm": self.storm,
-            "episodes": self.episodes,
-            "storm_within_interval": self.within,
-        }
+def estimate_json(e: Estimate) -> dict[str, Any]:
+    """One estimate in validation.json (``checked`` is Storm's value)."""
+    return {
+        "objective": e.objective,
+        "kind": e.kind,
+        "closed_loop": e.mean,
+        "interval99": [e.low, e.high],
+        "storm": e.checked,
+        "episodes": e.episodes,
+        "storm_within_interval": e.agrees,
+    }
 
 
 @frozen(kw_only=True)
@@ -88,7 +72,7 @@ class Validation:
                 {
                     "policy": p.policy,
                     "role": p.role,
-                    "estimates": [e.to_json() for e in p.estimates],
+                    "estimates": [estimate_json(e) for e in p.estimates],
                     "notes": list(p.notes),
                 }
                 for p in self.policies
@@ -107,7 +91,7 @@ def estimate(objective: str, formula: str, samples: np.ndarray, storm: float) ->
         deviation = float(np.std(samples, ddof=1)) if n > 1 else 0.0
         half = Z99 * deviation / math.sqrt(n)
         low, high, kind = mean - half, mean + half, "mean"
-    return Estimate(objective=objective, kind=kind, mean=mean, low=low, high=high, storm=storm, episodes=n)
+    return Estimate(objective=objective, kind=kind, mean=mean, low=low, high=high, checked=storm, episodes=n)
 
 
 def _baselines(run_dir: Path, names: Sequence[str]) -> list[tuple[str, dict[str, int], tuple[float, ...]]]:
@@ -242,8 +226,8 @@ def plot(validation: Validation, path: Path) -> None:
             )
             ax.plot(
                 [i - 0.3, i + 0.3],
-                [found.storm] * 2,
-                color="crimson" if not found.within else "tab:green",
+                [found.checked] * 2,
+                color="crimson" if not found.agrees else "tab:green",
                 lw=2,
                 label="Storm (the model)" if i == 0 else None,
             )

@@ -180,10 +180,10 @@ def validate_command(
                 e.objective,
                 fmt(e.mean),
                 f"{fmt(e.low)} .. {fmt(e.high)}",
-                fmt(e.storm),
-                "yes" if e.within else "NO",
+                fmt(e.checked),
+                "yes" if e.agrees else "NO",
             )
-            if not e.within:
+            if not e.agrees:
                 outside.append(f"{p.policy} {e.objective}")
     console = Console()
     console.print(table)

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from parley_plugins.turtlebot.world import CRASH, HEADINGS, OUT, Cell, Motions, Outcome
+from parley_plugins.turtlebot.world import HEADINGS, Cell, Motions, Outcome, decode
 
 ANGLE = {"north": math.pi / 2, "east": 0.0, "south": -math.pi / 2, "west": math.pi}
 """The direction of each heading in radians (x east, y north)."""
@@ -115,14 +115,4 @@ def _classify(px, py, final_theta, cell: Cell, obstacles: np.ndarray, cell_lengt
 
 def _distribution(codes: np.ndarray, samples: int) -> tuple[tuple[Outcome, float], ...]:
     values, counts = np.unique(codes, return_counts=True)
-    result = []
-    for value, count in zip(values.tolist(), counts.tolist()):
-        if value == -2:
-            outcome = CRASH
-        elif value == -1:
-            outcome = OUT
-        else:
-            place, heading = divmod(value, 4)
-            outcome = Outcome("move", place // 5 - 2, place % 5 - 2, heading)
-        result.append((outcome, count / samples))
-    return tuple(result)
+    return tuple((decode(value), count / samples) for value, count in zip(values.tolist(), counts.tolist()))

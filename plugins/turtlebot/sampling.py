@@ -39,7 +39,7 @@ import numpy as np
 from attrs import asdict, frozen
 
 from parley_plugins.turtlebot.physics import CELL, Physics, Robot, Waffle
-from parley_plugins.turtlebot.world import CRASH, HEADINGS, OUT, Cell, Outcome
+from parley_plugins.turtlebot.world import HEADINGS, Cell, Outcome, decode
 
 ANGLE = {"north": math.pi / 2, "east": 0.0, "south": -math.pi / 2, "west": math.pi}
 """Yaw of each heading (x east, y north)."""
@@ -217,17 +217,7 @@ def motions_of(counts: dict[tuple, dict[int, int]], samples: int) -> dict[tuple,
     """The motion table (probabilities) of the counts."""
     table = {}
     for key, found in counts.items():
-        outcomes = []
-        for code, count in sorted(found.items()):
-            if code == -2:
-                outcome = CRASH
-            elif code == -1:
-                outcome = OUT
-            else:
-                place, heading = divmod(code, 4)
-                outcome = Outcome("move", place // 5 - 2, place % 5 - 2, heading)
-            outcomes.append((outcome, count / samples))
-        table[key] = tuple(outcomes)
+        table[key] = tuple((decode(code), count / samples) for code, count in sorted(found.items()))
     return table
 
 

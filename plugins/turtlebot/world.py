@@ -37,6 +37,18 @@ class Outcome:
 CRASH = Outcome("crash")
 OUT = Outcome("out")
 
+
+def decode(code: int) -> Outcome:
+    """The outcome of a Monte Carlo code: -2 crash, -1 out, else ``((dx + 2) * 5 + dy + 2) * 4
+    + heading`` (the simulators classify their draws so, to count them with numpy)."""
+    if code == -2:
+        return CRASH
+    if code == -1:
+        return OUT
+    place, heading = divmod(code, 4)
+    return Outcome("move", place // 5 - 2, place % 5 - 2, heading)
+
+
 Key = tuple[int, int, int, str]
 """(x, y, true heading, commanded move)."""
 
