@@ -61,7 +61,7 @@ def main() -> None:
         print("|---|---|---|---|---|")
         for label, table, whole, closed, policy, success in rows:
             print(
-                f"| {label} | {table:.1f} | {whole:.1f} | {closed:.1f} | {policy}: {success.storm:.3f} / "
+                f"| {label} | {table:.1f} | {whole:.1f} | {closed:.1f} | {policy}: {success.checked:.3f} / "
                 f"{success.mean:.3f} ({success.low:.3f}-{success.high:.3f}) |"
             )
 
