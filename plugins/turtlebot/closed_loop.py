@@ -39,8 +39,7 @@ from attrs import frozen
 
 from parley_core import URC, Episodes, ObservationError, SystemModel
 from parley_plugins.turtlebot.physics import CELL, Physics, Robot
-from parley_plugins.turtlebot.sampling import ANGLE
-from parley_plugins.turtlebot.world import HEADINGS, STEP, World
+from parley_plugins.turtlebot.world import ANGLE, HEADINGS, STEP, World, heading_of
 
 TRACED = 40
 """Episodes whose paths are kept for the plot."""
@@ -53,11 +52,6 @@ class Trace:
 
     paths: tuple[np.ndarray, ...]
     endings: tuple[str, ...]
-
-
-def heading_of(yaw: np.ndarray) -> np.ndarray:
-    """The nearest of the four headings (0 north, 1 east, 2 south, 3 west) of yaws."""
-    return np.rint((math.pi / 2 - yaw) / (math.pi / 2)).astype(int) % 4
 
 
 def run_episodes(
@@ -120,7 +114,8 @@ def run_episodes(
                     break
             heading_yaw = math.pi / 2 - command * (math.pi / 2)  # 0 north -> pi/2, 1 east -> 0, ...
             controls = robot.controls(heading_yaw - believed[active], rng)
-            moved = robot.run(pose[active], controls, robot.frictions(rng, len(active)), keep_paths=bool(traced))
+            keep = int(np.sum(active < traced))  # the traced episodes lead: active is sorted
+            moved = robot.run(pose[active], controls, robot.frictions(rng, len(active)), keep_paths=keep)
             pose[active] = moved.poses
             if 3 * k < horizon:
                 energy[active] += move_cost
@@ -158,9 +153,8 @@ def run_episodes(
             endings[active[moved.out]] = "left the area"
             done[active[failed]] = True
             if moved.paths is not None:
-                for j, i in enumerate(active):
-                    if i < traced:
-                        paths[i].append(moved.paths[j, ::10, :2])
+                for j, i in enumerate(active[:keep]):
+                    paths[i].append(moved.paths[j, ::10, :2])
     if progress and n > reported:
         progress(n - reported)
     notes = []

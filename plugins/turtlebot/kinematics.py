@@ -25,10 +25,7 @@ import math
 
 import numpy as np
 
-from parley_plugins.turtlebot.world import HEADINGS, Cell, Motions, Outcome, decode
-
-ANGLE = {"north": math.pi / 2, "east": 0.0, "south": -math.pi / 2, "west": math.pi}
-"""The direction of each heading in radians (x east, y north)."""
+from parley_plugins.turtlebot.world import ANGLE, HEADINGS, Cell, Motions, Outcome, decode
 
 PATH_POINTS = 15
 """Points per path at which obstacles and the border are checked (one every 20 cm for 3 m cells)."""

@@ -166,7 +166,7 @@ def mjcf(size: int, obstacles: Iterable[Cell], robot: Waffle = Waffle(), physics
 class Moves:
     """Where a batch of moves ended: poses ``[n, 3]`` (x, y in metres, yaw in radians from
     east, counter-clockwise), and whether each crashed (the chassis touched an obstacle) or
-    left the area (the robot's centre crossed the border) first; ``paths`` ``[n, steps, 3]``
+    left the area (the robot's centre crossed the border) first; ``paths`` ``[kept, steps, 3]``
     (the pose after every step) when asked for."""
 
     poses: np.ndarray
@@ -293,17 +293,21 @@ class Robot:
         """Each of ``n`` moves' floor friction, as an index into :attr:`models`."""
         return rng.integers(0, FRICTION_LEVELS, n)
 
-    def run(self, starts: np.ndarray, controls: np.ndarray, friction: np.ndarray, keep_paths: bool = False) -> Moves:
+    def run(
+        self, starts: np.ndarray, controls: np.ndarray, friction: np.ndarray, keep_paths: bool | int = False
+    ) -> Moves:
         """Drive each robot from its start pose ``[n, 3]`` with its wheel speeds ``[n, steps,
-        2]`` on a floor of its friction (:meth:`frictions`)."""
+        2]`` on a floor of its friction (:meth:`frictions`). ``keep_paths``: keep every
+        robot's path (True) or the first ``keep_paths`` robots'."""
         return self._run([self.models[k] for k in friction], starts, controls, keep_paths)
 
-    def _run(self, models: list, starts: np.ndarray, controls: np.ndarray, keep_paths: bool = False) -> Moves:
+    def _run(self, models: list, starts: np.ndarray, controls: np.ndarray, keep_paths: bool | int = False) -> Moves:
         n, steps = controls.shape[:2]
         poses = np.empty((n, 3))
         crashed = np.zeros(n, dtype=bool)
         out = np.zeros(n, dtype=bool)
-        paths = np.empty((n, steps, 3)) if keep_paths else None
+        kept = n if keep_paths is True else int(keep_paths)
+        paths = np.empty((kept, steps, 3)) if kept else None
         for begin in range(0, n, BATCH):
             end = min(n, begin + BATCH)
             state = np.tile(self.template, (end - begin, 1))
@@ -323,9 +327,10 @@ class Robot:
                 hit = touch[:, :, 0] > 0.0
                 first_out = np.minimum(first_out, np.where(outside.any(axis=1), t0 + outside.argmax(axis=1), steps))
                 first_crash = np.minimum(first_crash, np.where(hit.any(axis=1), t0 + hit.argmax(axis=1), steps))
-                if paths is not None:
-                    paths[begin:end, t0:t1, :2] = xy
-                    paths[begin:end, t0:t1, 2] = yaw_of(states[:, :, 4:8])
+                if paths is not None and begin < kept:
+                    last = min(end, kept) - begin
+                    paths[begin : begin + last, t0:t1, :2] = xy[:last]
+                    paths[begin : begin + last, t0:t1, 2] = yaw_of(states[:last, :, 4:8])
                 state = states[:, -1].copy()
             poses[begin:end, 0:2] = state[:, 1:3]
             poses[begin:end, 2] = yaw_of(state[:, 4:8])

@@ -39,10 +39,7 @@ import numpy as np
 from attrs import asdict, frozen
 
 from parley_plugins.turtlebot.physics import CELL, Physics, Robot, Waffle
-from parley_plugins.turtlebot.world import HEADINGS, Cell, Outcome, decode
-
-ANGLE = {"north": math.pi / 2, "east": 0.0, "south": -math.pi / 2, "west": math.pi}
-"""Yaw of each heading (x east, y north)."""
+from parley_plugins.turtlebot.world import ANGLE, HEADINGS, Cell, Outcome, decode, heading_of
 
 TURNS = (0.0, math.pi / 2, -math.pi / 2, math.pi)
 """The angles a move can turn by (counter-clockwise): straight on, left, right, about."""
@@ -149,8 +146,7 @@ def classify(
             overlap &= np.abs(-dx * sin + dy * cos) <= b + h * (as_ + ac)
             hit |= overlap
     first_crash = np.where(hit.any(axis=1), hit.argmax(axis=1), points)
-    quarter = np.rint(yaw[:, -1] / (math.pi / 2)).astype(int) % 4  # 0 east, 1 north, 2 west, 3 south
-    heading = np.array([1, 0, 3, 2])[quarter]
+    heading = heading_of(yaw[:, -1])
     dx_cell = np.clip(np.floor(x[:, -1] / CELL).astype(int) - cell[0], -2, 2)
     dy_cell = np.clip(np.floor(y[:, -1] / CELL).astype(int) - cell[1], -2, 2)
     code = ((dx_cell + 2) * 5 + dy_cell + 2) * 4 + heading

@@ -9,9 +9,11 @@ or leaving the area.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Mapping
 
+import numpy as np
 from attrs import field, frozen
 
 from parley_core.errors import OptionError
@@ -20,6 +22,15 @@ HEADINGS = ("north", "east", "south", "west")
 """Heading names by number, and the move commands' names."""
 
 STEP = {"north": (0, 1), "east": (1, 0), "south": (0, -1), "west": (-1, 0)}
+
+ANGLE = {"north": math.pi / 2, "east": 0.0, "south": -math.pi / 2, "west": math.pi}
+"""The yaw of each heading in radians (x east, y north, counter-clockwise)."""
+
+
+def heading_of(yaw: np.ndarray) -> np.ndarray:
+    """The nearest of the four headings (their numbers) of yaws in radians."""
+    return np.rint((math.pi / 2 - yaw) / (math.pi / 2)).astype(int) % 4
+
 
 Cell = tuple[int, int]
 
