@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from attrs import field, frozen
 
-from parley_core import metrics
+from parley_core import metrics, robust
 from parley_core.augment import augment
 from parley_core.casestudy import CaseStudy
 from parley_core.constraints import meets
@@ -25,6 +25,8 @@ from parley_core.evaluate import Evaluator, EvaluatorKind, make_evaluator
 from parley_core.evaluate.cache import CachingEvaluator
 from parley_core.model import Family, Front, Policy, SystemModel, Valued
 from parley_core.progress import NullReporter, Reporter
+from parley_core.robust import ScenarioModel
+from parley_core.scenarios import ScenarioSet
 from parley_core.search import SearchResult, SearchSettings, search
 from parley_core.verify import Verification, VerifyPath, by_search, check_with_storm, not_checked
 
@@ -39,6 +41,9 @@ class Prepared:
     system: SystemModel
     family: Family
     timings: dict[str, float] = field(factory=dict)
+    scenarios: tuple[ScenarioModel, ...] = ()
+    """A robust run's scenarios (:mod:`parley_core.robust`); ``options``, ``system`` and
+    ``family`` are then the first scenario's. Empty: an ordinary run."""
 
 
 @contextmanager
@@ -70,19 +75,52 @@ def prepare(case: CaseStudy, options: Any, reporter: Reporter | None = None) -> 
     """Build the case study's system model and augment it (pruned if the case study asks)."""
     reporter = reporter or NullReporter()
     timings: dict[str, float] = {}
-    with _timed(timings, "build"):
-        if case.warm_up is not None:
-            case.warm_up(options, reporter)
-        reporter.stage("build model")
-        system = case.build(options)
-    reporter.stage("augment")
-    with _timed(timings, "augment"):
-        family = make_family(system, prune=case.prune)
+    system, family = _build(case, options, reporter, timings)
     if family.left_out:
         reporter.note(f"{len(family.left_out)} observation valuations never consult a service and are left out")
     for note in family.system.notes if family.system else ():
         reporter.note(note)
-    return Prepared(case=case, options=options, system=family.system or system, family=family, timings=timings)
+    return Prepared(case=case, options=options, system=system, family=family, timings=timings)
+
+
+def prepare_scenarios(
+    case: CaseStudy, assignments: dict[str, str], scenarios: ScenarioSet, reporter: Reporter | None = None
+) -> Prepared:
+    """A robust run's models: the case study built and augmented once per scenario (each
+    scenario's option values over ``assignments``, the run's ``--set``)."""
+    reporter = reporter or NullReporter()
+    timings: dict[str, float] = {}
+    models = []
+    for scenario, options in robust.scenario_options(case, assignments, scenarios):
+        system, family = _build(case, options, reporter, timings, f" ({scenario.label})")
+        models.append(ScenarioModel(scenario=scenario, options=options, system=system, family=family))
+    first = models[0]
+    if first.family.left_out:
+        reporter.note(f"{len(first.family.left_out)} observation valuations never consult a service and are left out")
+    return Prepared(
+        case=case,
+        options=first.options,
+        system=first.system,
+        family=first.family,
+        timings=timings,
+        scenarios=tuple(models),
+    )
+
+
+def _build(
+    case: CaseStudy, options: Any, reporter: Reporter, timings: dict[str, float], label: str = ""
+) -> tuple[SystemModel, Family]:
+    """The case study's system model for ``options`` (the augmented one's, with named
+    rewards) and its family."""
+    with _timed(timings, "build"):
+        if case.warm_up is not None:
+            case.warm_up(options, reporter)
+        reporter.stage("build model" + label)
+        system = case.build(options)
+    reporter.stage("augment" + label)
+    with _timed(timings, "augment"):
+        family = make_family(system, prune=case.prune)
+    return family.system or system, family
 
 
 def evaluate(
@@ -118,6 +156,15 @@ class RunResult:
     evaluator_info: dict[str, Any] = field(factory=dict)
     bound: Bound | None = None
     """A certified outer bound of the family (None: not asked for, or not available)."""
+    baseline_scenarios: np.ndarray | None = field(default=None, eq=False)
+    """A robust run's values of each baseline in each scenario [baselines, scenarios, objectives]
+    (Storm's, as ``baseline``'s); ``baseline`` holds their worst case."""
+    front_scenarios: np.ndarray | None = field(default=None, eq=False)
+    """The same for the front's policies, in the front's order."""
+
+    @property
+    def scenarios(self) -> tuple[ScenarioModel, ...]:
+        return self.prepared.scenarios
 
     @property
     def family(self) -> Family:
@@ -154,11 +201,21 @@ def run(
     family = prepared.family
     if not family.objectives:
         raise OptionError("the model has no objectives to optimize; give a properties file")
+    scenarios = prepared.scenarios
+    if scenarios and bound == "refine":
+        raise OptionError(
+            "--bound refine does not take --scenarios yet (branch and bound works on one model); "
+            "use --bound pareto or ideal"
+        )
     timings = dict(prepared.timings)
     directions = [o.direction for o in family.objectives]
     reporter.stage(f"{kind.value} evaluator")
+    engine: Any
     with _timed(timings, "evaluator"):
-        engine = make_evaluator(family, kind, workers)
+        if scenarios:
+            engine = robust.make_evaluator(scenarios, kind, workers, reporter)
+        else:
+            engine = make_evaluator(family, kind, workers)
     try:
         archive = CachingEvaluator(engine, len(family.decisions), len(family.objectives))
         with _timed(timings, "baselines"):
@@ -199,30 +256,33 @@ def run(
     mask = metrics.nondominated(found_values[feasible], directions)
     candidates = found_policies[feasible][mask]
     values = found_values[feasible][mask]
+    # the baselines too: every value a run reports is Storm's
+    base_rows = np.array([p.values for p in baseline.policies], dtype=np.int64).reshape(-1, len(family.decisions))
+    rows = np.vstack([base_rows, candidates])
+    each = None
     with _timed(timings, "verify"):
         if kind is EvaluatorKind.STORM:
-            verification = by_search()
+            verification, checked = by_search(), np.vstack([np.array(baseline.values).reshape(-1, len(names)), values])
         elif not verify:
-            verification = not_checked()
-        else:
-            # the baselines too: every value a run reports is Storm's
-            base_rows = np.array([p.values for p in baseline.policies], dtype=np.int64).reshape(
-                -1, len(family.decisions)
-            )
-            verification, checked = check_with_storm(
-                family,
-                np.vstack([base_rows, candidates]),
+            verification, checked = (
+                not_checked(),
                 np.vstack([np.array(baseline.values).reshape(-1, len(names)), values]),
-                workers,
-                reporter,
-                names=[f"baseline {p.name}" for p in baseline.policies] + [None] * len(candidates),
-                baselines=len(base_rows),
-                path=verify_with,
             )
-            baseline = Valued(
-                objectives=family.objectives, policies=baseline.policies, values=checked[: len(base_rows)]
-            )
-            values = checked[len(base_rows) :]
+        else:
+            names_ = [f"baseline {p.name}" for p in baseline.policies] + [None] * len(candidates)
+            if scenarios:
+                verification, checked, each = robust.check_scenarios(
+                    scenarios, engine, rows, workers, reporter, names_, len(base_rows), verify_with
+                )
+            else:
+                searched = np.vstack([np.array(baseline.values).reshape(-1, len(names)), values])
+                verification, checked = check_with_storm(
+                    family, rows, searched, workers, reporter, names_, len(base_rows), verify_with
+                )
+        if scenarios and each is None:
+            each = engine.scenario_values(rows)
+        baseline = Valued(objectives=family.objectives, policies=baseline.policies, values=checked[: len(base_rows)])
+        values = checked[len(base_rows) :]
     # Storm's values decide the front: drop anything they show to be dominated or infeasible.
     keep = (
         metrics.nondominated(values, directions)
@@ -231,6 +291,9 @@ def run(
     )
     candidates, values = candidates[keep], values[keep]
     order = np.lexsort(tuple(values[:, i] for i in reversed(range(values.shape[1]))))
+    baseline_each = front_each = None
+    if each is not None:
+        baseline_each, front_each = each[: len(base_rows)], each[len(base_rows) :][keep][order]
     width = len(str(len(order)))
     front = Front(
         objectives=family.objectives,
@@ -247,7 +310,7 @@ def run(
     elif bound != "none":
         with _timed(timings, "bound"):
             reporter.stage("bound")
-            found = _outer(family, engine, bound)[0]
+            found = robust.bound(scenarios, engine, bound, _outer) if scenarios else _outer(family, engine, bound)[0]
     reference = metrics.reference_point(family.objectives, np.array(front.values), np.array(baseline.values))
     describe = getattr(engine, "describe", None)
     return RunResult(
@@ -264,6 +327,8 @@ def run(
         selected=metrics.knee(np.array(front.values), directions),
         timings=timings,
         bound=found,
+        baseline_scenarios=baseline_each,
+        front_scenarios=front_each,
     )
 
 

@@ -133,6 +133,51 @@ def bound_csv(result: RunResult) -> str:
     return out.getvalue()
 
 
+def scenarios_csv(result: RunResult) -> str:
+    """A robust run's values of every baseline and front policy in every scenario: columns
+    ``policy``, ``set`` (front or baseline), ``scenario`` (its label), then the scenario's
+    options, then one column per objective (Storm's values, full precision)."""
+    assert result.front_scenarios is not None and result.baseline_scenarios is not None
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    keys = list(dict.fromkeys(k for m in result.scenarios for k in m.scenario.keys))
+    writer.writerow(["policy", "set", "scenario", *keys, *(o.name for o in result.family.objectives)])
+    for kind, valued, each in (
+        ("front", result.front, result.front_scenarios),
+        ("baseline", result.baseline, result.baseline_scenarios),
+    ):
+        for policy, rows in zip(valued.policies, each):
+            for model, row in zip(result.scenarios, rows):
+                values = model.scenario.values
+                writer.writerow(
+                    [policy.name, kind, model.label, *(values.get(k, "") for k in keys), *(repr(float(v)) for v in row)]
+                )
+    return out.getvalue()
+
+
+def scenarios_summary(result: RunResult) -> dict[str, Any] | None:
+    """A robust run's scenarios, and the front's and baseline's hypervolume in each (same
+    reference point as the run's)."""
+    if not result.scenarios:
+        return None
+    assert result.front_scenarios is not None and result.baseline_scenarios is not None
+    directions = [o.direction for o in result.family.objectives]
+    return {
+        "objective": "worst case over the scenarios (front.csv, baseline.csv); each scenario's values: scenarios.csv",
+        "scenarios": [
+            {
+                "label": model.label,
+                "set": model.scenario.values,
+                "front_hypervolume": metrics.hypervolume(result.front_scenarios[:, s], directions, result.reference),
+                "baseline_hypervolume": metrics.hypervolume(
+                    result.baseline_scenarios[:, s], directions, result.reference
+                ),
+            }
+            for s, model in enumerate(result.scenarios)
+        ],
+    }
+
+
 def infinite_counts(result: RunResult) -> dict[str, int]:
     """Per objective, how many evaluated policies have an infinite value (kept off the front)."""
     values = np.asarray(result.search.values, dtype=float).reshape(-1, len(result.family.objectives))
@@ -177,6 +222,7 @@ def summary(result: RunResult) -> dict[str, Any]:
         "objectives": [o.to_json() for o in family.objectives],
         "constraints": [str(c) for c in result.settings.constraints],
         "optimality": optimality(result, hv_front),
+        "robust": scenarios_summary(result),
         "infinite_values": infinite_counts(result),
         "front": {"size": len(result.front), "hypervolume": hv_front, "spread": spread(result, result.front)},
         "baseline": {"size": len(result.baseline), "hypervolume": hv_base, "spread": spread(result, result.baseline)},
@@ -209,6 +255,11 @@ def plot_front(result: RunResult, path: Path) -> None:
             label=f"parley front ({len(front)})",
         )
         ax.scatter(base[:, i], base[:, j], marker="x", color="tab:red", s=36, label=f"baseline ({len(base)})")
+        if result.front_scenarios is not None and len(result.scenarios) > 1:
+            # each scenario's values of the front's policies: the worst case is their lower envelope
+            for s, model in enumerate(result.scenarios):
+                each = result.front_scenarios[:, s]
+                ax.scatter(each[:, i], each[:, j], s=5, alpha=0.5, label=f"front in {model.label}", zorder=1)
         chosen = front[result.selected]
         ax.scatter(
             [chosen[i]],
@@ -252,7 +303,8 @@ def plot_front(result: RunResult, path: Path) -> None:
         ax.scatter(best, np.zeros(len(best)), s=90, color="tab:blue", label="parley's best")
         ax.set_yticks([])
         ax.set_xlabel(f"{objectives[0].name} ({objectives[0].direction.value})")
-    ax.set_title(f"{result.prepared.case.name}: front vs baseline", fontsize=11)
+    robust = f", worst case of {len(result.scenarios)} scenarios" if len(result.scenarios) > 1 else ""
+    ax.set_title(f"{result.prepared.case.name}: front vs baseline{robust}", fontsize=11)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     save(fig, path, dpi=130)
@@ -281,6 +333,8 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path
         (staging / "summary.json").write_text(json.dumps(summary(result), indent=2) + "\n")
         if result.bound is not None:
             (staging / "bound.csv").write_text(bound_csv(result))
+        if result.scenarios:
+            (staging / "scenarios.csv").write_text(scenarios_csv(result))
         plot_front(result, staging / "front.png")
         case = result.prepared.case
         if case.plot_policy is not None:

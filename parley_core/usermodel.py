@@ -15,10 +15,13 @@ Every problem is a ParleyError with one line saying what to do.
 
 from __future__ import annotations
 
+import math
+import re
 import signal
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
+import attrs
 from attrs import field, frozen
 
 from parley_core.casestudy import CaseStudy
@@ -133,12 +136,17 @@ def system_from_file(
     properties: Path | None = None,
     maximize: Sequence[str] = (),
     minimize: Sequence[str] = (),
+    define: Mapping[str, str] | None = None,
 ) -> SystemModel:
-    """The SystemModel of a user's PRISM file; checks everything a user can get wrong."""
+    """The SystemModel of a user's PRISM file; checks everything a user can get wrong.
+    ``define`` sets constants of the model (defined or not) to values (a scenario of a
+    robust run); the run's model.prism then declares them with these values."""
     text = read_text(path, "model file", "give the path of a PRISM model (.prism)", OptionError)
     if not decisions:
         raise OptionError("give at least one --decision NAME=LOW..HIGH (the constant that sets when a service runs)")
     services = [d if isinstance(d, Service) else parse_decision(d) for d in decisions]
+    if define:
+        text = override_constants(text, define, services=[s.constant for s in services])
     observation = parse_observation(observe)
     program = prism.parse_program(text, origin=f"model {path}")
     constants = {c.name: c for c in program.constants}
@@ -209,6 +217,57 @@ def system_from_file(
     return system
 
 
+_CONSTANT = r"\bconst\s+(?:(int|double|bool)\s+)?{name}\s*(=[^;]*)?;"
+
+
+def _blank_comments(text: str) -> str:
+    """``text`` with every ``//`` comment replaced by spaces (positions kept)."""
+    return re.sub(r"//[^\n]*", lambda m: " " * len(m.group()), text)
+
+
+def override_constants(text: str, values: Mapping[str, str], services: Sequence[str] = ()) -> str:
+    """A PRISM text with each named constant declared with the given value: ``const double
+    p = 0.02;`` for ``p=0.02`` (whether the model defines ``p`` or leaves it undefined)."""
+    bare = _blank_comments(text)
+    program = prism.parse_program(text, origin="model")
+    declared = {c.name: c for c in program.constants}
+    for name, value in values.items():
+        if name in services:
+            raise OptionError(f"--scenarios {name}=...: {name} is a decision constant; the URC chooses it")
+        if name not in declared:
+            names = ", ".join(sorted(n for n in declared if n not in services)) or "none"
+            raise OptionError(f"--scenarios {name}=...: the model declares no constant {name}; its constants: {names}")
+        constant = declared[name]
+        kind = "bool" if constant.type.is_boolean else "int" if constant.type.is_integer else "double"
+        checked = _constant_value(name, value, kind)
+        match = re.search(_CONSTANT.format(name=re.escape(name)), bare)
+        if match is None:
+            raise OptionError(f"--scenarios {name}=...: parley cannot find the declaration of {name} in the model")
+        declaration = f"const {kind} {name} = {checked};"
+        text = text[: match.start()] + declaration + text[match.end() :]
+        bare = bare[: match.start()] + declaration + bare[match.end() :]
+    return text
+
+
+def _constant_value(name: str, value: str, kind: str) -> str:
+    value = value.strip()
+    if kind == "bool":
+        if value not in ("true", "false"):
+            raise OptionError(f"--scenarios {name}={value}: {name} is a bool constant; give true or false")
+        return value
+    try:
+        number = float(value)
+    except ValueError:
+        raise OptionError(f"--scenarios {name}={value}: {name} is a {kind} constant; give a number") from None
+    if kind == "int":
+        if number != int(number):
+            raise OptionError(f"--scenarios {name}={value}: {name} is an int constant; give an integer")
+        return str(int(number))
+    if not math.isfinite(number):
+        raise OptionError(f"--scenarios {name}={value}: give a finite number")
+    return repr(number)
+
+
 def _quotient_program(system: SystemModel):
     return prism.parse_program(rewrite.quotient_program(system)[0])
 
@@ -240,14 +299,35 @@ class FileOptions:
     model: str = field(default="", metadata={"help": "the PRISM file"})
 
 
-def case_study_for(system: SystemModel, path: Path) -> CaseStudy:
-    """A one-off CaseStudy around a user's model, so that runs report like plugin runs."""
+def case_study_for(system: SystemModel, path: Path, rebuild: Callable[[dict[str, str]], SystemModel] | None = None):
+    """A one-off CaseStudy around a user's model, so that runs report like plugin runs.
+
+    With ``rebuild`` (``rebuild({constant: value})`` reads the model with those constants
+    set), its options are ``model`` and every constant of the model that is not a decision
+    (empty: the model's own value), so that a robust run's scenarios can set them."""
+    if rebuild is None:
+        return CaseStudy(
+            name=system.name,
+            description=f"user model {path}",
+            options_type=FileOptions,
+            build=lambda _options: system,
+            prune=True,
+        )
+    program = prism.parse_program(system.prism, origin=f"model {path}")
+    decisions = {s.constant for s in system.services}
+    names = [c.name for c in program.constants if c.name not in decisions and c.name != "model"]
+    fields = {"model": attrs.field(default=str(path), type=str, metadata={"help": "the PRISM file"})}
+    for name in names:
+        help_text = f"constant {name} of the model (empty: its own value)"
+        fields[name] = attrs.field(default="", type=str, metadata={"help": help_text})
+    options_type = attrs.make_class("ModelConstants", fields, frozen=True, kw_only=True)
+
+    def build(options) -> SystemModel:
+        values = {name: getattr(options, name) for name in names if getattr(options, name) != ""}
+        return rebuild(values) if values else system
+
     return CaseStudy(
-        name=system.name,
-        description=f"user model {path}",
-        options_type=FileOptions,
-        build=lambda _options: system,
-        prune=True,
+        name=system.name, description=f"user model {path}", options_type=options_type, build=build, prune=True
     )
 
 

@@ -74,6 +74,8 @@ class Verification:
     """Baselines re-checked besides the front's policies."""
     path: str = ""
     """How Storm was given the policies (a :class:`VerifyPath` value; empty when Storm did not re-check)."""
+    scenarios: int = 1
+    """Scenarios each policy was checked in (a robust run: :mod:`parley_core.robust`)."""
 
     def to_json(self) -> dict[str, object]:
         return {
@@ -85,6 +87,7 @@ class Verification:
             "max_relative_difference": self.max_relative_difference,
             "tolerance": TOLERANCE,
             "seconds": self.seconds,
+            "scenarios": self.scenarios,
         }
 
     @classmethod
@@ -97,6 +100,7 @@ class Verification:
             max_relative_difference=float(data.get("max_relative_difference", float("nan"))),
             baselines=int(data.get("baselines", 0)),
             path=str(data.get("path", "")),
+            scenarios=int(data.get("scenarios", 1)),
         )
 
 

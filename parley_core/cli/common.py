@@ -46,10 +46,15 @@ def case_study(name: str) -> CaseStudy:
     return registry().get(name)
 
 
-def prepare_case(case_name: str, assignments: list[str] | None, reporter=None):
-    from parley_core.pipeline import prepare
+def prepare_case(case_name: str, assignments: list[str] | None, reporter=None, scenarios: list[str] | None = None):
+    """The case study's prepared run; with ``scenarios`` (``--scenarios`` values), a robust one."""
+    from parley_core.options import parse_assignments
+    from parley_core.pipeline import prepare, prepare_scenarios
+    from parley_core.scenarios import ScenarioSet
 
     case = case_study(case_name)
+    if scenarios is not None:
+        return prepare_scenarios(case, parse_assignments(assignments or []), ScenarioSet.parse(scenarios), reporter)
     options = case.options(assignments or [])
     return prepare(case, options, reporter)
 

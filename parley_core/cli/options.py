@@ -106,4 +106,15 @@ VerifyWithOption = Annotated[
         "the path the tests compare with).",
     ),
 ]
+ScenariosOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--scenarios",
+        metavar="KEY=V1,V2,...|FILE.csv",
+        help="A robust run: score each policy by its worst value over these scenarios (values of a case-study "
+        "option, or of a model constant for `synthesize`; repeat for a grid of several, or give a CSV file with "
+        "a header of names and a scenario per row). Every front policy is checked by Storm in every scenario; "
+        "scenarios.csv holds each one's values.",
+    ),
+]
 OutOption = Annotated[Path | None, typer.Option(help="Run directory (default: runs/NAME-TIMESTAMP).")]

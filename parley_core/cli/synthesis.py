@@ -30,6 +30,7 @@ from parley_core.cli.options import (
     ObserveOption,
     OutOption,
     PopulationOption,
+    ScenariosOption,
     SeedOption,
     SetOption,
     TimeLimitOption,
@@ -60,6 +61,7 @@ def run_command(
     bound: BoundOption = "pareto",
     bound_time: BoundTimeOption = 60.0,
     verify_with: VerifyWithOption = "batch",
+    scenarios: ScenariosOption = None,
 ) -> None:
     """Synthesize a URC: search for Pareto-optimal policies, verify them with Storm, write a run directory."""
     settings = search_settings(
@@ -73,7 +75,7 @@ def run_command(
     )
     out = out or Path("runs") / f"{case}-{time.strftime('%Y%m%d-%H%M%S')}"
     _synthesize(
-        lambda reporter: prepare_case(case, set_, reporter),
+        lambda reporter: prepare_case(case, set_, reporter, scenarios),
         settings,
         out,
         force,
@@ -150,15 +152,22 @@ def synthesize_command(
     bound: BoundOption = "pareto",
     bound_time: BoundTimeOption = 60.0,
     verify_with: VerifyWithOption = "batch",
+    scenarios: ScenariosOption = None,
 ) -> None:
     """Synthesize a URC for your own PRISM model: the same pipeline and run directory as `parley run`."""
-    from parley_core.pipeline import prepare
+    from parley_core.pipeline import prepare, prepare_scenarios
+    from parley_core.scenarios import ScenarioSet
     from parley_core.usermodel import FileOptions, case_study_for, system_from_file
+
+    def read(constants=None):
+        return system_from_file(model, decision, observe or [], props, maximize or [], minimize or [], constants)
 
     def prepare_with(reporter):
         reporter.stage("read model")
-        system = system_from_file(model, decision, observe or [], props, maximize or [], minimize or [])
-        return prepare(case_study_for(system, model), FileOptions(model=str(model)), reporter)
+        if scenarios is not None:
+            chosen = ScenarioSet.parse(scenarios)
+            return prepare_scenarios(case_study_for(read(), model, rebuild=read), {}, chosen, reporter)
+        return prepare(case_study_for(read(), model), FileOptions(model=str(model)), reporter)
 
     settings = search_settings(
         population=population,
@@ -216,7 +225,9 @@ def _synthesize(
     info = summary(result)
     family = result.family
     constants = [s.constant for s in family.services]
-    console.print(front_table(f"Pareto front: {len(result.front)} policies, values checked by Storm", result.front))
+    robust = result.scenarios
+    checked = f"worst case over {len(robust)} scenarios, each checked by Storm" if robust else "values checked by Storm"
+    console.print(front_table(f"Pareto front: {len(result.front)} policies, {checked}", result.front))
     console.print(
         front_table("Baseline", result.baseline, {c: [b.values[c] for b in family.baselines] for c in constants})
     )
@@ -251,6 +262,12 @@ def _synthesize(
             )
             + f"; bound: {optimality['bound_method'].split(':')[0]} (bound.csv)"
         )
+    if info["robust"] is not None:
+        console.print(
+            "robust: each value is the worst over the scenarios; the front's hypervolume in each: "
+            + ", ".join(f"{s['label']} {fmt(s['front_hypervolume'])}" for s in info["robust"]["scenarios"])
+            + " (scenarios.csv)"
+        )
     search = result.search
     console.print(
         f"{search.evaluations} policies evaluated in {search.generations} generations of "
@@ -265,8 +282,9 @@ def _synthesize(
         )
     verification = result.verification
     if verification.by is Verified.STORM_RECHECK:
+        where = f" in each of {verification.scenarios} scenarios" if verification.scenarios > 1 else ""
         console.print(
-            f"every front policy and baseline re-checked by Storm ({verification.path}, "
+            f"every front policy and baseline re-checked by Storm{where} ({verification.path}, "
             f"{verification.seconds:.1f} s): largest difference from the {kind.value} "
             f"evaluator {verification.max_difference:.1e} (relative {verification.max_relative_difference:.1e}, "
             f"within the tolerance {TOLERANCE:g})"
