@@ -35,6 +35,21 @@ def robot():
         yield family, evaluator
 
 
+class Rounded:
+    """The quotient's values rounded to 1e-7, as the fixture was recorded: NSGA-II's ties
+    then no longer hang on the last bits, which differ between machines (tests/data/README.md)."""
+
+    def __init__(self, inner) -> None:
+        self.inner = inner
+        self.name = inner.name
+
+    def evaluate(self, policies, progress=None):
+        return np.round(self.inner.evaluate(policies, progress=progress), 7)
+
+    def close(self, abort: bool = False) -> None:
+        self.inner.close(abort)
+
+
 @pytest.mark.parametrize("key", ["web_ids", "robot_grid 4x4"])
 def test_the_paper_configuration_searches_as_before(key):
     recorded = json.loads(FIXTURE.read_text())[key]
@@ -46,7 +61,7 @@ def test_the_paper_configuration_searches_as_before(key):
             generations=recorded["generations"],
             seed=recorded["seed"],
         )
-        result = search(family, evaluator, settings)
+        result = search(family, Rounded(evaluator), settings)
     assert result.policies.tolist() == recorded["policies"]
     np.testing.assert_allclose(result.values, np.array(recorded["values"]), rtol=1e-12, atol=0)
 
