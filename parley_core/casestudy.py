@@ -9,6 +9,7 @@ from typing import Any
 import attrs
 from attrs import field, frozen, validators
 
+from parley_core.adaptive import EventModel
 from parley_core.errors import OptionError
 from parley_core.model import SystemModel
 from parley_core.options import convert, parse_assignments
@@ -65,6 +66,12 @@ class CaseStudy:
     simulator: Simulator | None = None
     """Optionally, a closed-loop simulator of the system (:class:`parley_core.simulator.Simulator`):
     ``parley validate RUN_DIR`` runs a run's policies on it against Storm's values."""
+    events: Mapping[str, EventModel] = field(factory=dict, converter=dict)
+    """Optionally, by option name, what the system observes about a drifting parameter
+    (:class:`parley_core.adaptive.EventModel`: which transitions are trials, how likely
+    their outcomes are under each value): an adaptive URC (``parley adapt``) switches policy
+    by it, and ``parley simulate --drift`` runs it (robot_grid: localisations that find the
+    estimate wrong tell about the slip probability ``p``)."""
     plot_policy: Callable[[SystemModel, PolicyTable, Path], None] | None = None
     """Optionally draws one policy as a PNG for the run report: ``plot_policy(system, table,
     path)``. A failing plot costs only the plot (the run says why in policy-plot-error.txt)."""

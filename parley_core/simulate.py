@@ -48,20 +48,9 @@ def family_for_controller(model: Path, controller: URC, props: Path) -> Family:
     return make_family(system, prune=True)
 
 
-def simulate(
-    family: Family, values: Sequence[int], episodes: int, seed: int, max_steps: int = 10_000
-) -> list[Estimate | str]:
-    """Estimates per objective (or a sentence saying why one cannot be simulated)."""
-    program = prism.parse_program(family.prism, origin="the augmented model")
-    instance = prism.define_constants(program, dict(zip(family.names, values)))
-    properties = prism.parse_properties([o.formula for o in family.objectives], instance, origin="objective")
-    options = stormpy.BuilderOptions(properties)
-    try:
-        model = stormpy.build_model(instance, options=options)
-    except RuntimeError as exc:
-        raise ModelError(f"Storm cannot build the policy's model: {prism.storm_message(exc)}") from None
-    checked = StormChecker(StormTask.of(family)).check(values)
-
+def simulation_plans(family: Family, instance, model, properties, checked) -> list[str | _Reach | _Reward]:
+    """Per objective, what a simulation of ``model`` (a policy's DTMC built from
+    ``instance``) estimates and Storm's value (``checked``), or a sentence saying why it cannot."""
     plans: list[str | _Reach | _Reward] = []
     for objective, prop, value in zip(family.objectives, properties, checked):
         found = shape(prop, instance)
@@ -81,6 +70,24 @@ def simulate(
             plans.append(("reward", objective.name, rewards.index(name), found.steps, value))
         else:
             plans.append(f"{objective.name}: {objective.formula} cannot be simulated (F, F<=k and C<=k can)")
+    return plans
+
+
+def simulate(
+    family: Family, values: Sequence[int], episodes: int, seed: int, max_steps: int = 10_000
+) -> list[Estimate | str]:
+    """Estimates per objective (or a sentence saying why one cannot be simulated)."""
+    program = prism.parse_program(family.prism, origin="the augmented model")
+    instance = prism.define_constants(program, dict(zip(family.names, values)))
+    properties = prism.parse_properties([o.formula for o in family.objectives], instance, origin="objective")
+    options = stormpy.BuilderOptions(properties)
+    try:
+        model = stormpy.build_model(instance, options=options)
+    except RuntimeError as exc:
+        raise ModelError(f"Storm cannot build the policy's model: {prism.storm_message(exc)}") from None
+    checked = StormChecker(StormTask.of(family)).check(values)
+
+    plans = simulation_plans(family, instance, model, properties, checked)
 
     engine = storm_simulator.developer.DiscreteTimeSparseModelSimulator(model)
     engine.set_seed(seed)

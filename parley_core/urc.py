@@ -102,6 +102,29 @@ class URC:
             "source": self.source,
         }
 
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any], source: str = "") -> URC:
+        """The URC of :meth:`to_json`'s document; KeyError, TypeError or ValueError if malformed."""
+        observation = [str(n) for n in data["observation"]]
+        services = [Service.from_json(s) for s in data["services"]]
+        constants = [s.constant for s in services]
+        table = {}
+        for entry in data["decisions"]:
+            valuation = tuple(int(v) for v in entry["observation"])
+            decision = {str(k): int(v) for k, v in entry["decision"].items()}
+            if len(valuation) != len(observation) or sorted(decision) != sorted(constants):
+                raise ValueError(f"decision {entry} does not fit the observation and services")
+            table[valuation] = decision
+        return cls(
+            observation=observation,
+            services=services,
+            table=table,
+            left_out=[tuple(int(v) for v in row) for row in data.get("left_out", [])],
+            policy=str(data.get("policy", "")),
+            values={str(k): float(v) for k, v in data.get("values", {}).items()},
+            source=str(data.get("source", "")) or source,
+        )
+
     def save(self, path: Path | str) -> None:
         Path(path).write_text(json.dumps(self.to_json(), indent=2) + "\n")
 
@@ -121,24 +144,6 @@ class URC:
                 f"controller file {path} is not a parley controller ({FORMAT}); give a file written by `parley select`"
             )
         try:
-            observation = [str(n) for n in data["observation"]]
-            services = [Service.from_json(s) for s in data["services"]]
-            constants = [s.constant for s in services]
-            table = {}
-            for entry in data["decisions"]:
-                valuation = tuple(int(v) for v in entry["observation"])
-                decision = {str(k): int(v) for k, v in entry["decision"].items()}
-                if len(valuation) != len(observation) or sorted(decision) != sorted(constants):
-                    raise ValueError(f"decision {entry} does not fit the observation and services")
-                table[valuation] = decision
-            return cls(
-                observation=observation,
-                services=services,
-                table=table,
-                left_out=[tuple(int(v) for v in row) for row in data.get("left_out", [])],
-                policy=str(data.get("policy", "")),
-                values={str(k): float(v) for k, v in data.get("values", {}).items()},
-                source=str(data.get("source", "")),
-            )
+            return cls.from_json(data, source=str(path))
         except (KeyError, TypeError, ValueError, ParleyError) as exc:
             raise PolicyError(f"controller file {path} is malformed ({exc}); write it with `parley select`") from None

@@ -62,7 +62,11 @@ def simulate_command(
         ),
     ],
     policy: Annotated[
-        Path, typer.Option(help="A controller file (`parley select`) or a policies CSV holding one policy.")
+        list[Path],
+        typer.Option(
+            help="A controller file (`parley select`) or a policies CSV holding one policy; with --drift, "
+            "repeat it for each controller to compare (plain or adaptive: `parley adapt`)."
+        ),
     ],
     props: Annotated[
         Path | None,
@@ -70,18 +74,42 @@ def simulate_command(
             help="With a PRISM model: the properties to simulate, each after a '// name: NAME, max|min' comment."
         ),
     ] = None,
-    episodes: Annotated[int, typer.Option(min=1, help="Simulated runs.")] = 10_000,
+    episodes: Annotated[
+        int | None, typer.Option(min=2, help="Simulated runs (default 10000); with --drift, systems (default 200).")
+    ] = None,
     seed: Annotated[int, typer.Option(help="Seed of Storm's simulator.")] = 1,
     max_steps: Annotated[int, typer.Option(min=1, help="Longest episode for unbounded reachability.")] = 10_000,
+    drift: Annotated[
+        str | None,
+        typer.Option(
+            metavar="NAME=FROM:TO@MISSION",
+            help="A drifting environment: the model constant NAME goes from FROM to TO at mission MISSION "
+            "(or linearly over missions BEGIN-END); each system runs --missions missions and every controller is "
+            "compared; writes drift.json and drift.png (in --out, default the run directory).",
+        ),
+    ] = None,
+    missions: Annotated[
+        int | None, typer.Option(min=2, help="With --drift: missions per system (default: twice the drift's end).")
+    ] = None,
+    out: Annotated[Path | None, typer.Option(help="With --drift: where to write drift.json and drift.png.")] = None,
     json_: JsonOption = False,
 ) -> None:
     """Simulate a policy with Storm's simulator; print empirical values with 99% intervals next to the
-    model-checked ones."""
+    model-checked ones. With --drift: fixed, robust and adaptive controllers mission after mission while a
+    parameter drifts."""
     from parley_core.policies import policy_from_file
     from parley_core.simulate import simulate
 
-    family = _simulated_family(target, policy, props)
-    values = policy_from_file(policy, family).values
+    if drift is not None:
+        _simulate_drift(target, policy, drift, missions, episodes or 200, seed, max_steps, out, json_)
+        return
+    if missions is not None or out is not None:
+        raise OptionError("--missions and --out are for --drift; give --drift NAME=FROM:TO@MISSION")
+    if len(policy) != 1:
+        raise OptionError(f"give one --policy (got {len(policy)}); several are for --drift")
+    episodes = episodes or 10_000
+    family = _simulated_family(target, policy[0], props)
+    values = policy_from_file(policy[0], family).values
     results = simulate(family, values, episodes, seed, max_steps)
     if json_:
         document = [
@@ -114,6 +142,164 @@ def simulate_command(
                 r.objective, fmt(r.mean), f"{fmt(r.low)} .. {fmt(r.high)}", fmt(r.checked), "yes" if r.agrees else "NO"
             )
     Console().print(table)
+
+
+def _simulate_drift(
+    target: Path,
+    policies: list[Path],
+    spec: str,
+    missions: int | None,
+    episodes: int,
+    seed: int,
+    max_steps: int,
+    out: Path | None,
+    json_: bool,
+) -> None:
+    from parley_core import rundir
+    from parley_core.adaptive import AdaptiveController, is_adaptive
+    from parley_core.cli.common import registry
+    from parley_core.cli.console import RichReporter, stderr
+    from parley_core.drift import Drift, plot, simulate_drift, to_json
+    from parley_core.urc import URC
+    from parley_core.usermodel import family_of_run
+
+    drift = Drift.parse(spec)
+    if not target.is_dir():
+        raise OptionError(f"--drift simulates the controllers on a run directory's model; {target} is not one")
+    run = rundir.load(target)
+    family = family_of_run(run)
+    controllers = []
+    for path in policies:
+        controller = AdaptiveController.load(path) if is_adaptive(path) else URC.load(path)
+        controllers.append((path.stem, controller))
+    if len({name for name, _ in controllers}) != len(controllers):
+        raise OptionError("two --policy files have the same name; give each controller its own file name")
+    case = registry().case_studies.get(str(run.summary.get("case_study", "")))
+    events = case.events.get(drift.parameter) if case is not None else None
+    missions = missions or max(2, 2 * drift.end)
+    with RichReporter(stderr()) as reporter:
+        result = simulate_drift(
+            family,
+            drift,
+            controllers,
+            events,
+            missions=missions,
+            episodes=episodes,
+            seed=seed,
+            max_steps=max_steps,
+            reporter=reporter,
+        )
+        reporter.stage("write report")
+        out = out or target
+        out.mkdir(parents=True, exist_ok=True)
+        document = to_json(result)
+        (out / "drift.json").write_text(json.dumps(document, indent=2) + "\n")
+        plot(result, out / "drift.png")
+    if json_:
+        print(json.dumps(document, indent=2))
+        return
+    table = Table(
+        title=f"{episodes} systems x {missions} missions, drift {drift} (seed {seed}); means with 99% intervals",
+        title_justify="left",
+    )
+    table.add_column("controller")
+    for phase in ("before", "after"):
+        for objective in result.objectives:
+            table.add_column(f"{objective} {phase}", justify="right")
+    table.add_column("Storm (before / after)", justify="right")
+    for entry, series in zip(document["controllers"], result.series):
+        cells = []
+        for phase in ("before", "after"):
+            for objective in result.objectives:
+                found = entry["phases"].get(phase, {}).get(objective)
+                cells.append(
+                    f"{fmt(found['mean'])} [{fmt(found['low'])}, {fmt(found['high'])}]" if found is not None else "-"
+                )
+        storm = "; ".join(
+            f"{policy}: "
+            + " / ".join(
+                ", ".join(fmt(v) for v in series.checked[policy, level])
+                for level in (result.levels[0], result.levels[-1])
+            )
+            for policy in series.policies
+        )
+        table.add_row(series.name, *cells, storm)
+    console = Console()
+    console.print(table)
+    for series in result.series:
+        if series.in_force.shape[1] > 1:
+            final = series.in_force[-1] / episodes
+            shares = ", ".join(f"{p} {100 * f:.0f}%" for p, f in zip(series.policies, final))
+            console.print(f"{series.name}: policies in force at the last mission: {shares}")
+        if series.cut:
+            console.print(f"{series.name}: {series.cut} episodes stopped at --max-steps {max_steps} before a sink")
+    console.print(f"wrote {out / 'drift.json'} and {out / 'drift.png'}")
+
+
+@app.command("adapt")
+@user_errors
+def adapt_command(
+    runs: Annotated[
+        list[Path], typer.Argument(help="Run directories of one case study that differ in one option's value.")
+    ],
+    parameter: Annotated[str, typer.Option(help="The option (a model constant) the runs differ in, e.g. p.")],
+    constraint: ConstraintOption = None,
+    prefer: Annotated[
+        str | None,
+        typer.Option(help="Per run, take the best policy on this objective (among those meeting the constraints)."),
+    ] = None,
+    forgetting: Annotated[
+        float, typer.Option(min=0.0, max=1.0, help="Each mission's end multiplies the log-likelihoods by this.")
+    ] = 0.8,
+    hysteresis: Annotated[
+        float, typer.Option(min=0.0, help="Switch when another value is this much more likely (log-likelihood).")
+    ] = 2.0,
+    out: Annotated[Path, typer.Option(help="Adaptive controller file to write.")] = Path("adaptive.json"),
+) -> None:
+    """An adaptive URC: from each run (one value of a drifting parameter each) the policy `parley select` would
+    pick, switched at runtime to the most likely value's; the first run's value is in force at the start."""
+    from parley_core import rundir
+    from parley_core.adaptive import AdaptiveController, Estimator
+    from parley_core.selection import controller, select
+
+    if len(runs) < 2:
+        raise OptionError("give two or more run directories, one per value of the parameter")
+    if forgetting <= 0:
+        raise OptionError("--forgetting must be above 0 (1: never forget)")
+    loaded = [rundir.load(path) for path in runs]
+    first = loaded[0]
+    values = []
+    for path, run in zip(runs, loaded):
+        options = run.summary.get("options", {})
+        if parameter not in options:
+            raise OptionError(f"run {path} has no option {parameter!r}; its options: {', '.join(options) or 'none'}")
+        if run.summary.get("case_study") != first.summary.get("case_study") or run.decisions != first.decisions:
+            raise OptionError(f"run {path} is of another case study or decides other things than {runs[0]}")
+        others = {k: v for k, v in options.items() if k != parameter}
+        base = {k: v for k, v in first.summary.get("options", {}).items() if k != parameter}
+        if others != base:
+            differ = sorted(k for k in set(others) | set(base) if others.get(k) != base.get(k))
+            raise OptionError(
+                f"run {path} differs from {runs[0]} in {', '.join(differ)} too; only {parameter} may differ"
+            )
+        try:
+            values.append(float(options[parameter]))
+        except (TypeError, ValueError):
+            raise OptionError(f"run {path}: option {parameter}={options[parameter]!r} is not a number") from None
+    urcs = [controller(run, select(run, constraints(constraint), prefer)) for run in loaded]
+    order = sorted(range(len(values)), key=lambda i: values[i])
+    adaptive = AdaptiveController(
+        parameter=parameter,
+        values=[values[i] for i in order],
+        controllers=[urcs[i] for i in order],
+        estimator=Estimator(forgetting=forgetting, hysteresis=hysteresis),
+        start=order.index(0),
+    )
+    adaptive.save(out)
+    chosen = ", ".join(f"{parameter}={values[i]:g}: {urcs[i].policy}" for i in order)
+    Console().print(
+        f"adaptive controller over {parameter} ({chosen}); starts with {parameter}={values[0]:g}; wrote {out}"
+    )
 
 
 def _simulated_family(target: Path, policy: Path, props: Path | None):

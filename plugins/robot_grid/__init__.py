@@ -26,6 +26,7 @@ from parley_core import (
     positive,
 )
 from parley_plugins.robot_grid import grid as grids
+from parley_plugins.robot_grid.events import SLIP
 from parley_plugins.robot_grid.generator import prism_model
 from parley_plugins.robot_grid.planner import plan
 
@@ -106,6 +107,7 @@ CASE_STUDY = CaseStudy(
     options_type=RobotGridOptions,
     build=build,
     plot_policy=plot_policy,
+    events={"p": SLIP},
     quick={"size": "5", "seed": "1", "horizon": "45", "max_interval": "4"},
     # the paper's nine requirement settings: min success x max cost
     requirement_settings=[(s, c) for s in (0.6, 0.7, 0.8) for c in (60, 80, 100)],

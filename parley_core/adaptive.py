@@ -1,0 +1,228 @@
+"""An adaptive URC: one Storm-checked policy per scenario, switched by what the system observes.
+
+A model's numbers drift (a robot's wheels wear, attacks come in waves). An
+:class:`AdaptiveController` holds one policy per value of a drifting parameter, each
+synthesized and checked for its own model (``parley adapt`` reads them from run
+directories), and an :class:`Estimator` that weighs the observed events under each value:
+
+- an *event* is a trial with an outcome and a context: a localisation that finds the
+  estimate wrong (outcome 1) or right (0) after ``context`` moves. A plugin's
+  :class:`EventModel` says which transitions of its model are trials and how likely an
+  outcome is under each parameter value; the default, :func:`bernoulli`, is for a parameter
+  that *is* the probability of the observed event per trial;
+- the estimator keeps each value's log-likelihood of the events seen, discounted by
+  ``forgetting`` at every mission's end (so that it follows a drift), and
+- :meth:`AdaptiveURC.adapt`, called between missions, switches to the most likely value's
+  policy when it beats the current one's by ``hysteresis`` (a log-likelihood margin: 2.0
+  means e^2, about 7 times more likely), so that noise does not flip the policy back and forth.
+
+Switching happens between missions only: each policy's Storm-checked values are those of a
+mission run by that policy from the model's initial state; a switch inside a mission would
+leave neither policy's values standing.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from attrs import field, frozen, validators
+
+from parley_core.errors import ObservationError, ParleyError, PolicyError
+from parley_core.files import read_text
+from parley_core.urc import URC
+
+FORMAT = "parley-adaptive-urc/1"
+
+Events = Callable[[Mapping[str, np.ndarray], Mapping[str, np.ndarray]], tuple[np.ndarray, np.ndarray, np.ndarray]]
+"""``events(before, after)``: for transitions from states with variable values ``before`` to
+``after`` (arrays, one entry per transition), which are trials, their outcomes (0/1) and
+their contexts (integers)."""
+
+Likelihood = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
+"""``probability(value, outcomes, contexts)``: each event's probability if the parameter is ``value``."""
+
+
+def bernoulli(value: float, outcomes: np.ndarray, contexts: np.ndarray) -> np.ndarray:
+    """The default likelihood: the parameter is the probability of outcome 1 per trial."""
+    return np.where(np.asarray(outcomes, dtype=bool), value, 1.0 - value)
+
+
+@frozen(kw_only=True)
+class EventModel:
+    """What a plugin tells the estimator about one drifting parameter (the
+    :class:`~parley_core.CaseStudy` field ``events``, by option name)."""
+
+    description: str
+    variables: tuple[str, ...] = field(converter=tuple)
+    """The state variables ``events`` reads."""
+    events: Events
+    probability: Likelihood = bernoulli
+
+
+@frozen(kw_only=True)
+class Estimator:
+    """Settings of the estimator (module docstring)."""
+
+    forgetting: float = field(default=0.8, validator=[validators.gt(0.0), validators.le(1.0)])
+    """Each mission's end multiplies every log-likelihood by this (1: never forget)."""
+    hysteresis: float = field(default=2.0, validator=validators.ge(0.0))
+    """Switch when another value's log-likelihood exceeds the current one's by this much."""
+
+
+class Beliefs:
+    """The estimator's state for ``n`` independent systems at once (the drift simulation runs
+    many; the runtime URC one): per system, each value's discounted log-likelihood and the
+    index of the value whose policy is in force."""
+
+    def __init__(self, values: Sequence[float], estimator: Estimator, probability: Likelihood, n: int, start: int):
+        self.values = tuple(float(v) for v in values)
+        self.estimator = estimator
+        self.probability = probability
+        self.scores = np.zeros((n, len(self.values)))
+        self.current = np.full(n, start, dtype=np.int64)
+
+    def observe(self, systems: np.ndarray, outcomes: np.ndarray, contexts: np.ndarray) -> None:
+        """Events of ``systems`` (indices, one per event; a system may appear several times)."""
+        for j, value in enumerate(self.values):
+            with np.errstate(divide="ignore"):
+                logs = np.log(np.clip(self.probability(value, outcomes, contexts), 0.0, 1.0))
+            np.add.at(self.scores[:, j], systems, logs)
+
+    def adapt(self) -> np.ndarray:
+        """A mission ended: switch where another value is ``hysteresis`` more likely, then
+        forget; returns which systems switched."""
+        best = np.argmax(self.scores, axis=1)
+        rows = np.arange(len(self.current))
+        margin = self.scores[rows, best] - self.scores[rows, self.current]
+        switch = (best != self.current) & (margin > self.estimator.hysteresis)
+        self.current = np.where(switch, best, self.current)
+        finite = np.isfinite(self.scores)
+        self.scores = np.where(finite, self.scores * self.estimator.forgetting, -1e300)
+        return switch
+
+
+def _urcs(items: Sequence[URC]) -> tuple[URC, ...]:
+    return tuple(items)
+
+
+def _floats(items: Sequence[float]) -> tuple[float, ...]:
+    return tuple(float(v) for v in items)
+
+
+@frozen(kw_only=True)
+class AdaptiveController:
+    """One policy per value of a drifting parameter, and the estimator's settings."""
+
+    parameter: str
+    values: tuple[float, ...] = field(converter=_floats)
+    controllers: tuple[URC, ...] = field(converter=_urcs)
+    estimator: Estimator = field(factory=Estimator)
+    start: int = 0
+    """The value whose policy is in force before any event (default: the first)."""
+
+    def __attrs_post_init__(self) -> None:
+        if len(self.values) != len(self.controllers) or len(self.values) < 2:
+            raise PolicyError("an adaptive controller needs two or more parameter values, one controller each")
+        if len(set(self.values)) != len(self.values):
+            raise PolicyError(f"an adaptive controller gives {self.parameter} a value twice")
+        first = self.controllers[0]
+        for urc in self.controllers[1:]:
+            if urc.observation != first.observation or urc.services != first.services:
+                raise PolicyError("the controllers of an adaptive controller must read and decide the same things")
+        if not 0 <= self.start < len(self.values):
+            raise PolicyError(f"start {self.start} is not the index of one of the {len(self.values)} values")
+
+    def runtime(self, probability: Likelihood = bernoulli) -> AdaptiveURC:
+        return AdaptiveURC(self, probability)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "format": FORMAT,
+            "parameter": self.parameter,
+            "estimator": {"forgetting": self.estimator.forgetting, "hysteresis": self.estimator.hysteresis},
+            "start": self.start,
+            "scenarios": [
+                {"value": value, "controller": urc.to_json()} for value, urc in zip(self.values, self.controllers)
+            ],
+        }
+
+    def save(self, path: Path | str) -> None:
+        Path(path).write_text(json.dumps(self.to_json(), indent=2) + "\n")
+
+    @classmethod
+    def load(cls, path: Path | str) -> AdaptiveController:
+        path = Path(path)
+        text = read_text(path, "controller file", "give a file written by `parley adapt`", PolicyError)
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise PolicyError(f"controller file {path} is not JSON ({exc.msg}, line {exc.lineno})") from None
+        if not isinstance(data, dict) or data.get("format") != FORMAT:
+            raise PolicyError(
+                f"controller file {path} is not an adaptive controller ({FORMAT}); write it with `parley adapt`"
+            )
+        try:
+            return cls(
+                parameter=str(data["parameter"]),
+                values=[float(s["value"]) for s in data["scenarios"]],
+                controllers=[URC.from_json(s["controller"]) for s in data["scenarios"]],
+                estimator=Estimator(**{k: float(v) for k, v in data.get("estimator", {}).items()}),
+                start=int(data.get("start", 0)),
+            )
+        except (KeyError, TypeError, ValueError, ParleyError) as exc:
+            raise PolicyError(f"controller file {path} is malformed ({exc}); write it with `parley adapt`") from None
+
+
+def is_adaptive(path: Path) -> bool:
+    """Whether a controller file holds an adaptive controller (else a plain one)."""
+    try:
+        return json.loads(path.read_text()).get("format") == FORMAT
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+class AdaptiveURC:
+    """The runtime adaptive URC of one system: ``decide`` as the policy in force does,
+    ``observe`` events as they happen, ``adapt`` at each mission's end."""
+
+    def __init__(self, controller: AdaptiveController, probability: Likelihood = bernoulli) -> None:
+        self.controller = controller
+        self._beliefs = Beliefs(controller.values, controller.estimator, probability, 1, controller.start)
+        self.switches: list[tuple[int, float, float]] = []
+        """(mission, old value, new value) of every switch."""
+        self.missions = 0
+
+    @property
+    def value(self) -> float:
+        """The parameter value whose policy is in force."""
+        return self.controller.values[int(self._beliefs.current[0])]
+
+    @property
+    def urc(self) -> URC:
+        return self.controller.controllers[int(self._beliefs.current[0])]
+
+    @property
+    def scores(self) -> dict[float, float]:
+        """Each value's discounted log-likelihood of the events seen."""
+        return dict(zip(self.controller.values, (float(s) for s in self._beliefs.scores[0])))
+
+    def decide(self, observation) -> dict[str, int]:
+        return self.urc.decide(observation)
+
+    def observe(self, outcome: bool | int, context: int = 0) -> None:
+        if int(outcome) not in (0, 1):
+            raise ObservationError(f"an event's outcome is 0 or 1, got {outcome!r}")
+        self._beliefs.observe(np.zeros(1, dtype=np.int64), np.array([int(outcome)]), np.array([int(context)]))
+
+    def adapt(self) -> float:
+        """A mission ended: maybe switch (see the module docstring); returns the value in force."""
+        before = self.value
+        self._beliefs.adapt()
+        self.missions += 1
+        if self.value != before:
+            self.switches.append((self.missions, before, self.value))
+        return self.value

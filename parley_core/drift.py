@@ -1,0 +1,486 @@
+"""Controllers in a drifting environment: fixed, robust and adaptive URCs, mission after mission.
+
+A system runs ``missions`` missions one after the other (a robot crossing its map again and
+again), while a parameter of its model drifts: ``p=0.01:0.03@40`` jumps from 0.01 to 0.03 at
+mission 40, ``p=0.01:0.03@20-60`` ramps linearly from mission 20 to 60 (in at most
+:data:`RAMP_LEVELS` steps). Each mission is an episode of the policy's DTMC for the
+parameter's value at that mission, built by Storm from the run's model.prism with the
+parameter's constant set (so the drift needs the parameter to be a constant of the model)
+and sampled here from Storm's transition matrix, ``episodes`` independent systems at once.
+A fixed URC keeps its policy; an adaptive one (:mod:`parley_core.adaptive`) observes the
+events its case study's :class:`~parley_core.adaptive.EventModel` reads off each transition
+and may switch policy between missions. Per mission and controller, the result holds each
+objective's mean over the systems with a 99 % interval, and Storm's value of every
+(policy, parameter value) pair, which the missions at a constant value must agree with.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import stormpy
+from attrs import field, frozen
+
+from parley_core.adaptive import AdaptiveController, Beliefs, EventModel
+from parley_core.errors import ModelError, OptionError
+from parley_core.evaluate.storm import check_values, reference_environment
+from parley_core.model import Family
+from parley_core.prism import program as prism
+from parley_core.progress import NullReporter, Reporter
+from parley_core.quotient.mdp import read_umb
+from parley_core.simulate import simulation_plans
+from parley_core.simulator import Z99, wilson
+from parley_core.urc import URC
+from parley_core.usermodel import override_constants
+
+RAMP_LEVELS = 9
+"""A ramp takes at most this many distinct values (one DTMC per policy and value)."""
+
+
+@frozen(kw_only=True)
+class Drift:
+    """A parameter's value per mission: ``low`` before mission ``begin``, ``high`` from
+    ``end`` on, linear in between (a jump when ``begin == end``)."""
+
+    parameter: str
+    low: float
+    high: float
+    begin: int
+    end: int
+
+    @classmethod
+    def parse(cls, text: str) -> Drift:
+        match = re.fullmatch(r"\s*([A-Za-z_]\w*)=([^:@]+):([^:@]+)@(\d+)(?:-(\d+))?\s*", text)
+        if match is None:
+            raise OptionError(
+                f"malformed --drift {text!r}; write NAME=FROM:TO@MISSION (a jump) or NAME=FROM:TO@BEGIN-END (a ramp), "
+                "e.g. p=0.01:0.03@40"
+            )
+        name, low, high, begin, end = match.groups()
+        try:
+            values = float(low), float(high)
+        except ValueError:
+            raise OptionError(f"--drift {text!r}: FROM and TO must be numbers, e.g. p=0.01:0.03@40") from None
+        first, last = int(begin), int(end) if end is not None else int(begin)
+        if last < first:
+            raise OptionError(f"--drift {text!r}: the ramp ends before it begins; write BEGIN-END with BEGIN <= END")
+        if values[0] == values[1]:
+            raise OptionError(f"--drift {text!r}: FROM and TO are equal; that is no drift")
+        return cls(parameter=name, low=values[0], high=values[1], begin=first, end=last)
+
+    def levels(self, missions: int) -> tuple[tuple[float, ...], np.ndarray]:
+        """The distinct values and, per mission, the index of its value."""
+        steps = min(RAMP_LEVELS, self.end - self.begin + 1) if self.end > self.begin else 2
+        values = tuple(float(v) for v in np.linspace(self.low, self.high, max(2, steps)))
+        m = np.arange(missions)
+        exact = np.where(
+            m < self.begin,
+            self.low,
+            np.where(
+                m >= self.end,
+                self.high,
+                self.low + (self.high - self.low) * (m - self.begin) / max(1, self.end - self.begin),
+            ),
+        )
+        index = np.abs(exact[:, None] - np.array(values)[None, :]).argmin(axis=1)
+        return values, index
+
+    def __str__(self) -> str:
+        at = f"{self.begin}" if self.begin == self.end else f"{self.begin}-{self.end}"
+        return f"{self.parameter}={self.low:g}:{self.high:g}@{at}"
+
+
+@frozen(kw_only=True)
+class Chain:
+    """A policy's DTMC at one parameter value, as arrays to sample from."""
+
+    keys: np.ndarray
+    """Per branch, its state's index plus the cumulative probability within the state (sorted)."""
+    targets: np.ndarray
+    rewards: dict[int, np.ndarray] = field(eq=False)
+    """Reward model index -> per state, the state reward plus the reward of its one choice."""
+    masks: dict[str, np.ndarray] = field(eq=False)
+    """Reach objective -> its phi states."""
+    sinks: np.ndarray
+    variables: dict[str, np.ndarray] = field(eq=False)
+    initial: int
+    plans: tuple = field(eq=False)
+    checked: tuple[float, ...]
+    """Storm's value of each objective."""
+
+    def step(self, states: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        return self.targets[np.searchsorted(self.keys, states + rng.random(len(states)), side="right")]
+
+
+def build_chain(family: Family, values: Sequence[int], parameter: str, value: float, variables: Sequence[str]) -> Chain:
+    """Storm builds the policy ``values`` of ``family`` with the parameter's constant set to ``value``."""
+    text = override_constants(family.prism, {parameter: repr(value)}, services=list(family.names))
+    program = prism.parse_program(text, origin="the run's model")
+    instance = prism.define_constants(program, dict(zip(family.names, (int(v) for v in values))))
+    properties = prism.parse_properties([o.formula for o in family.objectives], instance, origin="objective")
+    options = stormpy.BuilderOptions(properties)
+    options.set_build_state_valuations()
+    options.set_build_all_reward_models()
+    try:
+        model = stormpy.build_model(instance, options=options)
+    except RuntimeError as exc:
+        raise ModelError(f"Storm cannot build the policy's model: {prism.storm_message(exc)}") from None
+    environment = reference_environment()
+    initial = int(model.initial_states[0])
+    checked = tuple(check_values(model, prop, environment, [initial])[0] for prop in properties)
+    plans = simulation_plans(family, instance, model, properties, checked)
+    arrays, _ = read_umb(model)
+    n = int(model.nr_states)
+    # a DTMC's export has no state-to-choices (one choice per state)
+    choices = arrays.get("state-to-choices.bin", np.arange(n + 1)).astype(np.int64)
+    if len(choices) != n + 1 or int(choices[-1]) != n:
+        raise ModelError("the policy's model is not a DTMC with one choice per state")
+    begins = arrays["choice-to-branches.bin"].astype(np.int64)
+    targets = arrays["branch-to-target.bin"].astype(np.int64)
+    probabilities = arrays["branch-to-probability.bin"].astype(np.float64)
+    state_of_branch = np.repeat(np.arange(n), np.diff(begins))
+    cumulative = np.cumsum(probabilities)
+    start = np.concatenate([[0.0], cumulative])[begins[:-1]]
+    within = cumulative - start[state_of_branch]
+    totals = within[begins[1:] - 1]
+    keys = state_of_branch + within / totals[state_of_branch]
+    keys[begins[1:] - 1] = np.arange(1, n + 1)  # the last branch of each state closes it exactly
+    single = np.diff(begins) == 1
+    sinks = single & (targets[begins[:-1]] == np.arange(n))
+    names = list(model.reward_models)
+    rewards = {}
+    for plan in plans:
+        if not isinstance(plan, str) and plan[0] == "reward":
+            structure = model.reward_models[names[plan[2]]]
+            each = np.zeros(n)
+            if structure.has_state_rewards:
+                each += np.asarray(structure.state_rewards, dtype=float)
+            if structure.has_state_action_rewards:
+                each += np.asarray(structure.state_action_rewards, dtype=float)
+            rewards[plan[2]] = each
+    masks = {plan[1]: plan[2] for plan in plans if not isinstance(plan, str) and plan[0] == "reach"}
+    by_name = {v.name: v for v in prism.all_variables(instance)}
+    missing = [v for v in variables if v not in by_name]
+    if missing:
+        raise ModelError(f"the event model reads {', '.join(missing)}, which the model lacks")
+    valuations = model.state_valuations
+    read = {}
+    for name in variables:
+        variable = by_name[name].expression_variable
+        read[name] = np.array([valuations.get_int64_value(s, variable) for s in range(n)], dtype=np.int64)
+    return Chain(
+        keys=keys,
+        targets=targets,
+        rewards=rewards,
+        masks=masks,
+        sinks=sinks,
+        variables=read,
+        initial=initial,
+        plans=tuple(plans),
+        checked=checked,
+    )
+
+
+@frozen(kw_only=True)
+class Series:
+    """One controller's missions: per objective and mission, the mean over the systems and
+    its 99 % interval; per mission, how many systems run each parameter value's policy."""
+
+    name: str
+    means: dict[str, np.ndarray] = field(eq=False)
+    lows: dict[str, np.ndarray] = field(eq=False)
+    highs: dict[str, np.ndarray] = field(eq=False)
+    in_force: np.ndarray = field(eq=False)
+    """[missions, policies]: systems per policy of the controller."""
+    policies: tuple[str, ...]
+    """The controller's policies (one for a fixed URC; one per value for an adaptive one)."""
+    checked: dict[tuple[str, float], tuple[float, ...]] = field(eq=False)
+    """Storm's values of (policy, parameter value)."""
+    cut: int = 0
+    """Episodes stopped at max_steps before reaching a sink."""
+
+
+@frozen(kw_only=True)
+class DriftResult:
+    drift: Drift
+    missions: int
+    episodes: int
+    seed: int
+    objectives: tuple[str, ...]
+    kinds: tuple[str, ...]
+    """Per objective, ``probability`` or ``mean reward``."""
+    levels: tuple[float, ...]
+    level_of_mission: np.ndarray = field(eq=False)
+    series: tuple[Series, ...]
+
+    def phase(self, series: Series, objective: str, first: int, last: int) -> tuple[float, float, float]:
+        """The mean of an objective over missions ``first..last-1`` and all systems, with its 99 % interval."""
+        mean = float(series.means[objective][first:last].mean())
+        n = self.episodes * (last - first)
+        kind = self.kinds[self.objectives.index(objective)]
+        if kind == "probability":
+            low, high = wilson(round(mean * n), n)
+            return mean, low, high
+        spread = (series.highs[objective][first:last] - series.means[objective][first:last]) / Z99
+        deviation = float(np.sqrt(np.mean(spread**2) * self.episodes))
+        half = Z99 * deviation / math.sqrt(n)
+        return mean, mean - half, mean + half
+
+
+Controller = URC | AdaptiveController
+
+
+def policy_values(family: Family, urc: URC) -> tuple[int, ...]:
+    if tuple(urc.observation) != tuple(family.observation):
+        raise OptionError(
+            f"a controller reads {', '.join(urc.observation)}, the run's model {', '.join(family.observation)}"
+        )
+    return tuple(urc.decide(d.valuation)[d.service.constant] for d in family.decisions)
+
+
+def simulate_drift(
+    family: Family,
+    drift: Drift,
+    controllers: Sequence[tuple[str, Controller]],
+    events: EventModel | None,
+    *,
+    missions: int,
+    episodes: int,
+    seed: int,
+    max_steps: int = 10_000,
+    reporter: Reporter | None = None,
+) -> DriftResult:
+    """Every controller on ``episodes`` systems for ``missions`` missions each (module docstring)."""
+    reporter = reporter or NullReporter()
+    levels, level_of = drift.levels(missions)
+    adaptive = [c for _, c in controllers if isinstance(c, AdaptiveController)]
+    for one in adaptive:
+        if one.parameter != drift.parameter:
+            raise OptionError(
+                f"an adaptive controller switches on {one.parameter}, the drift changes {drift.parameter}"
+            )
+        if events is None:
+            raise OptionError(
+                f"the adaptive controller needs an event model for {drift.parameter} from the case study's plugin, "
+                "which has none; simulate fixed controllers only"
+            )
+    variables = tuple(events.variables) if events is not None and adaptive else ()
+    chains: dict[tuple[tuple[int, ...], int], Chain] = {}
+    policies: dict[str, list[tuple[int, ...]]] = {}
+    for name, given in controllers:
+        policies[name] = [policy_values(family, urc) for urc in _urcs(given)]
+    needed = {(values, k) for rows in policies.values() for values in rows for k in range(len(levels))}
+    reporter.stage("build the policies' models", len(needed))
+    for values, k in sorted(needed):
+        chains[values, k] = build_chain(family, values, drift.parameter, levels[k], variables)
+        reporter.advance(1)
+    first = next(iter(chains.values()))
+    plans = [p for p in first.plans if not isinstance(p, str)]
+    objectives = tuple(p[1] for p in plans)
+    kinds = tuple("probability" if p[0] == "reach" else "mean reward" for p in plans)
+    horizon = max(max_steps if p[3] is None else p[3] for p in plans)
+    reporter.stage("missions", missions * len(controllers))
+    series = []
+    for c, (name, controller) in enumerate(controllers):
+        rng = np.random.default_rng([seed, c])
+        rows = policies[name]
+        beliefs = (
+            Beliefs(controller.values, controller.estimator, events.probability, episodes, controller.start)
+            if isinstance(controller, AdaptiveController) and events is not None
+            else None
+        )
+        means = {o: np.empty(missions) for o in objectives}
+        lows = {o: np.empty(missions) for o in objectives}
+        highs = {o: np.empty(missions) for o in objectives}
+        in_force = np.zeros((missions, len(rows)), dtype=np.int64)
+        cut = 0
+        for m in range(missions):
+            current = beliefs.current if beliefs is not None else np.zeros(episodes, dtype=np.int64)
+            in_force[m] = np.bincount(current, minlength=len(rows))
+            outcome = {o: np.zeros(episodes) for o in objectives}
+            for j in np.unique(current):
+                systems = np.flatnonzero(current == j)
+                chain = chains[rows[j], int(level_of[m])]
+                found, stopped = _episodes(chain, plans, len(systems), horizon, rng, beliefs, systems, events)
+                cut += stopped
+                for o in objectives:
+                    outcome[o][systems] = found[o]
+            if beliefs is not None:
+                beliefs.adapt()
+            for o, kind in zip(objectives, kinds):
+                column = outcome[o]
+                means[o][m] = column.mean()
+                if kind == "probability":
+                    lows[o][m], highs[o][m] = wilson(int(column.sum()), episodes)
+                else:
+                    half = Z99 * column.std(ddof=1) / math.sqrt(episodes) if episodes > 1 else 0.0
+                    lows[o][m], highs[o][m] = column.mean() - half, column.mean() + half
+            reporter.advance(1)
+        checked = {}
+        names = _names(name, controller)
+        for policy, row in zip(names, rows):
+            for k, level in enumerate(levels):
+                checked[policy, level] = chains[row, k].checked
+        series.append(
+            Series(
+                name=name,
+                means=means,
+                lows=lows,
+                highs=highs,
+                in_force=in_force,
+                policies=names,
+                checked=checked,
+                cut=cut,
+            )
+        )
+    return DriftResult(
+        drift=drift,
+        missions=missions,
+        episodes=episodes,
+        seed=seed,
+        objectives=objectives,
+        kinds=kinds,
+        levels=levels,
+        level_of_mission=level_of,
+        series=tuple(series),
+    )
+
+
+def _urcs(controller: Controller) -> tuple[URC, ...]:
+    return controller.controllers if isinstance(controller, AdaptiveController) else (controller,)
+
+
+def _names(name: str, controller: Controller) -> tuple[str, ...]:
+    """The controller's policies by name (an adaptive one's with their parameter values)."""
+    if isinstance(controller, AdaptiveController):
+        return tuple(
+            f"{urc.policy or name} ({controller.parameter}={value:g})"
+            for urc, value in zip(controller.controllers, controller.values)
+        )
+    return (controller.policy or name,)
+
+
+def _episodes(
+    chain: Chain,
+    plans: list,
+    n: int,
+    horizon: int,
+    rng: np.random.Generator,
+    beliefs: Beliefs | None,
+    systems: np.ndarray,
+    events: EventModel | None,
+) -> tuple[dict[str, np.ndarray], int]:
+    """One mission of ``n`` systems on ``chain``: each objective's outcome per system (1/0 or
+    the reward), and how many were stopped at ``horizon`` without reaching a sink."""
+    state = np.full(n, chain.initial, dtype=np.int64)
+    reached = {p[1]: np.zeros(n, dtype=bool) for p in plans if p[0] == "reach"}
+    totals = {p[1]: np.zeros(n) for p in plans if p[0] == "reward"}
+    alive = np.ones(n, dtype=bool)
+    step = 0
+    while True:
+        for p in plans:
+            if p[0] == "reach" and (p[3] is None or step <= p[3]):
+                reached[p[1]] |= chain.masks[p[1]][state]
+        sink = chain.sinks[state]
+        for p in plans:
+            if p[0] == "reward" and step < p[3]:
+                earned = chain.rewards[p[2]][state]
+                # a system in a sink earns the same reward at every remaining step
+                totals[p[1]] += np.where(sink & alive, earned * (p[3] - step), np.where(alive, earned, 0.0))
+        alive &= ~sink
+        if step == horizon or not alive.any():
+            break
+        following = np.where(alive, chain.step(state, rng), state)
+        if beliefs is not None and events is not None:
+            moving = np.flatnonzero(alive)
+            before = {k: v[state[moving]] for k, v in chain.variables.items()}
+            after = {k: v[following[moving]] for k, v in chain.variables.items()}
+            trial, outcome, context = events.events(before, after)
+            trial = np.asarray(trial, dtype=bool)
+            if trial.any():
+                beliefs.observe(systems[moving[trial]], np.asarray(outcome)[trial], np.asarray(context)[trial])
+        state = following
+        step += 1
+    values: dict[str, Any] = {name: hit.astype(float) for name, hit in reached.items()}
+    values.update(totals)
+    return values, int(alive.sum())
+
+
+def to_json(result: DriftResult) -> dict[str, Any]:
+    """The drift simulation as drift.json: per controller, the phases' means with 99 %
+    intervals, Storm's values of its policies, and the series per mission."""
+    drift = result.drift
+    phases = {
+        "before": (0, min(drift.begin, result.missions)),
+        "after": (min(drift.end, result.missions), result.missions),
+    }
+    document: dict[str, Any] = {
+        "drift": str(drift),
+        "missions": result.missions,
+        "episodes": result.episodes,
+        "seed": result.seed,
+        "levels": list(result.levels),
+        "controllers": [],
+    }
+    for series in result.series:
+        entry: dict[str, Any] = {"name": series.name, "policies": list(series.policies), "phases": {}}
+        for phase, (first, last) in phases.items():
+            if last > first:
+                entry["phases"][phase] = {
+                    "missions": [first, last],
+                    **{
+                        o: dict(zip(("mean", "low", "high"), result.phase(series, o, first, last)))
+                        for o in result.objectives
+                    },
+                }
+        entry["storm"] = [
+            {"policy": policy, drift.parameter: level, **dict(zip(result.objectives, values))}
+            for (policy, level), values in series.checked.items()
+        ]
+        entry["per_mission"] = {o: series.means[o].tolist() for o in result.objectives}
+        entry["in_force"] = series.in_force.tolist()
+        entry["cut"] = series.cut
+        document["controllers"].append(entry)
+    return document
+
+
+def plot(result: DriftResult, path) -> None:
+    """Each objective per mission (the mean over the systems, a 99 % band), one line per
+    controller; the drift shaded; for adaptive controllers, the share of systems on the
+    policy of the drift's final value."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from parley_core.plotting import save
+
+    rows = len(result.objectives) + 1
+    fig = Figure(figsize=(7.5, 2.4 * rows))
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(rows, 1, sharex=True)
+    missions = np.arange(result.missions)
+    drift = result.drift
+    for ax, objective in zip(axes, result.objectives):
+        for series in result.series:
+            line = ax.plot(missions, series.means[objective], lw=1.2, label=series.name)[0]
+            ax.fill_between(
+                missions, series.lows[objective], series.highs[objective], color=line.get_color(), alpha=0.15
+            )
+        ax.set_ylabel(objective)
+        ax.grid(alpha=0.3)
+    share = axes[-1]
+    for series in result.series:
+        if series.in_force.shape[1] > 1:
+            share.plot(missions, series.in_force[:, -1] / result.episodes, lw=1.2, label=series.name)
+    share.set_ylabel(f"on the last\n{drift.parameter} policy")
+    share.set_ylim(-0.05, 1.05)
+    share.set_xlabel("mission")
+    share.grid(alpha=0.3)
+    for ax in axes:
+        ax.axvspan(drift.begin - 0.5, drift.end + 0.5, color="tab:gray", alpha=0.2, lw=0)
+    axes[0].legend(fontsize=8)
+    axes[0].set_title(f"{result.episodes} systems, {result.missions} missions each; drift {drift}", fontsize=10)
+    save(fig, path, dpi=120)
