@@ -161,6 +161,8 @@ class RunResult:
     (Storm's, as ``baseline``'s); ``baseline`` holds their worst case."""
     front_scenarios: np.ndarray | None = field(default=None, eq=False)
     """The same for the front's policies, in the front's order."""
+    warm_start: int = 0
+    """Policies of an earlier front the search started from (0: a cold start)."""
 
     @property
     def scenarios(self) -> tuple[ScenarioModel, ...]:
@@ -182,6 +184,7 @@ def run(
     bound: str = "pareto",
     bound_time: float | None = None,
     verify_with: str | VerifyPath = VerifyPath.BATCH,
+    warm: Sequence[Policy] = (),
 ) -> RunResult:
     """Baselines, search, verification, bound; returns everything the report needs.
 
@@ -191,6 +194,9 @@ def run(
     and bound over the decisions' ranges after the search (:mod:`parley_core.exact`) for at
     most ``bound_time`` seconds (None: until the front is proven exact), whose policies join
     the front and whose open sub-families make the bound; "none" skips it.
+
+    ``warm``: policies (an earlier front, say for other numbers of the model) the search
+    starts from besides the baselines (a warm start, :func:`parley_core.search.run.initial_population`).
 
     ``verify_with``: how Storm re-checks the front (:class:`parley_core.verify.VerifyPath`).
     ``verify=False`` skips re-checking the front with Storm when another evaluator searched
@@ -207,6 +213,8 @@ def run(
             "--bound refine does not take --scenarios yet (branch and bound works on one model); "
             "use --bound pareto or ideal"
         )
+    for policy in warm:
+        family.check(policy)
     timings = dict(prepared.timings)
     directions = [o.direction for o in family.objectives]
     reporter.stage(f"{kind.value} evaluator")
@@ -222,7 +230,8 @@ def run(
             baseline = evaluate(family, family.baseline_policies(), archive, reporter, stage="baselines")
         reporter.stage("search", settings.generations)
         with _timed(timings, "search"):
-            result = search(family, engine, settings, archive=archive, progress=reporter.advance)
+            rows = np.array([p.values for p in warm], dtype=np.int64).reshape(-1, len(family.decisions))
+            result = search(family, engine, settings, archive=archive, progress=reporter.advance, warm=rows)
         if result.interrupted:
             reporter.note(
                 f"search interrupted after {result.generations} generations; writing the front of what was evaluated"
@@ -329,6 +338,7 @@ def run(
         bound=found,
         baseline_scenarios=baseline_each,
         front_scenarios=front_each,
+        warm_start=len(warm),
     )
 
 

@@ -206,6 +206,7 @@ def summary(result: RunResult) -> dict[str, Any]:
             "time_limit_seconds": result.settings.time_limit,
             "stopped_by": search.stopped_by.value,
             "interrupted": search.interrupted,
+            "warm_start_policies": result.warm_start,
         },
         "evaluator": result.evaluator.value,
         "evaluator_details": result.evaluator_info,

@@ -204,3 +204,58 @@ def test_cli_adapt_and_simulate_with_drift(tmp_path):
     assert result.exit_code == 2 and "two or more" in result.stderr
     result = runner.invoke(app, ["adapt", str(tmp_path / "0.01"), str(tmp_path / "0.05"), "--parameter", "zz"])
     assert result.exit_code == 2 and "no option 'zz'" in result.stderr
+
+
+def test_a_warm_start_puts_the_earlier_front_in_the_first_population(robot_family):
+    from parley_core.search import SearchSettings
+    from parley_core.search.problem import Genes
+    from parley_core.search.run import initial_population
+
+    family = robot_family
+    rng = np.random.default_rng(4)
+    warm = family.random(rng, 150)
+    settings = SearchSettings(population=100, generations=1, seed=1)
+    genes = Genes(family)
+    first = genes.decode(initial_population(family, settings, warm=warm).astype(np.int64))
+    baselines = len(family.baseline_policies())
+    kept = first[baselines:100]
+    assert len(first) == 100 and np.array_equal(kept[0], warm[0]) and np.array_equal(kept[-1], warm[-1])
+    assert all(any(np.array_equal(row, w) for w in warm) for row in kept)  # evenly spaced, all from the front
+    few = genes.decode(initial_population(family, settings, warm=warm[:5]).astype(np.int64))
+    assert np.array_equal(few[baselines : baselines + 5], warm[:5])
+    cold = genes.decode(initial_population(family, settings).astype(np.int64))
+    assert np.array_equal(cold[:baselines], few[:baselines])
+
+
+def test_cli_warm_start_needs_a_run_of_the_same_family(tmp_path):
+    runner = CliRunner()
+    quick = [f"--set={k}={v}" for k, v in QUICK.items()] + [
+        "--workers",
+        "1",
+        "--generations",
+        "2",
+        "--population",
+        "10",
+    ]
+    first = tmp_path / "first"
+    assert runner.invoke(app, ["run", "robot_grid", *quick, "--bound", "none", "--out", str(first)]).exit_code == 0
+    result = runner.invoke(
+        app,
+        [
+            "run",
+            "robot_grid",
+            *quick,
+            "--set=p=0.03",
+            "--bound",
+            "none",
+            "--warm-start",
+            str(first),
+            "--out",
+            str(tmp_path / "w"),
+        ],
+    )
+    assert result.exit_code == 0, result.stderr
+    assert "warm start: the search started from" in " ".join(result.stdout.split())
+    other = [a for a in quick if not a.startswith("--set=size")] + ["--set=size=6"]
+    result = runner.invoke(app, ["run", "robot_grid", *other, "--warm-start", str(first), "--out", str(tmp_path / "x")])
+    assert result.exit_code == 2 and len(result.stderr.strip().splitlines()) == 1, result.stderr

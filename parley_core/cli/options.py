@@ -117,4 +117,13 @@ ScenariosOption = Annotated[
         "scenarios.csv holds each one's values.",
     ),
 ]
+WarmStartOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--warm-start",
+        metavar="RUN_DIR",
+        help="Start the search from the front of an earlier run of the same family (its policies.csv), say for "
+        "other numbers of the model, besides the baselines.",
+    ),
+]
 OutOption = Annotated[Path | None, typer.Option(help="Run directory (default: runs/NAME-TIMESTAMP).")]

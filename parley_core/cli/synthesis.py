@@ -35,6 +35,7 @@ from parley_core.cli.options import (
     SetOption,
     TimeLimitOption,
     VerifyWithOption,
+    WarmStartOption,
     WorkersOption,
 )
 from parley_core.errors import OptionError
@@ -62,6 +63,7 @@ def run_command(
     bound_time: BoundTimeOption = 60.0,
     verify_with: VerifyWithOption = "batch",
     scenarios: ScenariosOption = None,
+    warm_start: WarmStartOption = None,
 ) -> None:
     """Synthesize a URC: search for Pareto-optimal policies, verify them with Storm, write a run directory."""
     settings = search_settings(
@@ -84,6 +86,7 @@ def run_command(
         bound,
         bound_time,
         verify_with,
+        warm_start,
     )
 
 
@@ -153,6 +156,7 @@ def synthesize_command(
     bound_time: BoundTimeOption = 60.0,
     verify_with: VerifyWithOption = "batch",
     scenarios: ScenariosOption = None,
+    warm_start: WarmStartOption = None,
 ) -> None:
     """Synthesize a URC for your own PRISM model: the same pipeline and run directory as `parley run`."""
     from parley_core.pipeline import prepare, prepare_scenarios
@@ -179,7 +183,7 @@ def synthesize_command(
         algorithm=algorithm,
     )
     out = out or Path("runs") / f"{model.stem}-{time.strftime('%Y%m%d-%H%M%S')}"
-    _synthesize(prepare_with, settings, out, force, evaluator, workers, bound, bound_time, verify_with)
+    _synthesize(prepare_with, settings, out, force, evaluator, workers, bound, bound_time, verify_with, warm_start)
 
 
 def _synthesize(
@@ -192,6 +196,7 @@ def _synthesize(
     bound: str = "pareto",
     bound_time: float | None = None,
     verify_with: str = "batch",
+    warm_start: Path | None = None,
 ) -> None:
     """Prepare, search, verify, write and print a run (shared by `run` and `synthesize`)."""
     from parley_core.pipeline import run
@@ -206,6 +211,13 @@ def _synthesize(
     check_output(out, force)
     with RichReporter(stderr()) as reporter:
         prepared = prepare_with(reporter)
+        warm = []
+        if warm_start is not None:
+            from parley_core.policies import read_policies
+
+            if not (warm_start / "policies.csv").is_file():
+                raise OptionError(f"--warm-start {warm_start}: no policies.csv there; give a run directory")
+            warm = read_policies(warm_start / "policies.csv", prepared.family)
         result = run(
             prepared,
             settings,
@@ -215,6 +227,7 @@ def _synthesize(
             bound=bound,
             bound_time=bound_time,
             verify_with=path,
+            warm=warm,
         )
         reporter.stage("write report")
         written = write_run(result, out, force=force)
@@ -269,6 +282,8 @@ def _synthesize(
             + " (scenarios.csv)"
         )
     search = result.search
+    if result.warm_start:
+        console.print(f"warm start: the search started from {result.warm_start} policies of {warm_start}")
     console.print(
         f"{search.evaluations} policies evaluated in {search.generations} generations of "
         f"{result.settings.algorithm} "

@@ -16,16 +16,26 @@ from parley_core.search.problem import Genes, PolicyProblem, termination
 from parley_core.search.settings import SearchResult, SearchSettings, Stop
 
 
-def initial_population(family: Family, settings: SearchSettings, blend: float = 0.0) -> np.ndarray:
+def initial_population(
+    family: Family, settings: SearchSettings, blend: float = 0.0, warm: np.ndarray | None = None
+) -> np.ndarray:
     """The baselines, then policies drawn from the seed up to the population size, as genes
     (:class:`Genes`): uniformly random ones, and with ``blend`` (a share of the draws) blends
     of two baselines (each decision from either), which lie between points the baseline
-    already reaches."""
+    already reaches. ``warm``: policies of an earlier front to start from (a warm start):
+    they come after the baselines, evenly spaced along their order if there are more than
+    the population has room for, and the random draws fill the rest."""
     rng = np.random.default_rng(settings.seed)
     genes = Genes(family)
     baselines = genes.encode(
         np.array([p.values for p in family.baseline_policies()], dtype=np.int64).reshape(-1, len(genes.lows))
     )
+    if warm is not None and len(warm):
+        room = max(0, settings.population - len(baselines))
+        warm = np.asarray(warm, dtype=np.int64).reshape(-1, len(genes.lows))
+        if len(warm) > room:
+            warm = warm[np.unique(np.linspace(0, len(warm) - 1, room).round().astype(np.int64))]
+        baselines = np.vstack([baselines, genes.encode(warm)])
     lows, highs = genes.lows, genes.highs
     n_random = max(0, settings.population - len(baselines))
     rows = rng.integers(lows, highs + 1, size=(n_random, len(lows)))
@@ -44,20 +54,22 @@ def search(
     *,
     archive: CachingEvaluator | None = None,
     progress: Progress | None = None,
+    warm: np.ndarray | None = None,
 ) -> SearchResult:
     """Run the settings' search configuration; Ctrl-C stops it and returns what was
     evaluated so far (``interrupted``).
 
     ``archive`` may hold policies evaluated before (by the same evaluator); they are not
     evaluated again, count towards ``max_evaluations`` and belong to the result.
-    ``progress`` is called once per generation.
+    ``progress`` is called once per generation. ``warm``: policies to start from besides
+    the baselines (:func:`initial_population`).
     """
     archive = (
         archive if archive is not None else CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
     )
     problem = PolicyProblem(family, archive, constraints=settings.constraints, budget=settings.max_evaluations)
     chosen = configuration(settings.algorithm)
-    algorithm = chosen.build(settings.population, initial_population(family, settings, blend=chosen.blend))
+    algorithm = chosen.build(settings.population, initial_population(family, settings, blend=chosen.blend, warm=warm))
     criteria = termination(settings, archive)
     algorithm.setup(problem, termination=TerminateIfAny(*criteria.values()), seed=settings.seed, verbose=False)
     start = time.perf_counter()
