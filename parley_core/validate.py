@@ -132,6 +132,11 @@ def validate(
         raise OptionError(
             f"the {case.name} plugin offers no simulator to validate against; case studies with one: turtlebot (MuJoCo)"
         )
+    if run.summary.get("robust"):
+        raise OptionError(
+            f"{run_dir} is a robust run: its front.csv holds worst cases over scenarios, which no one simulated "
+            "system has; validate a run of one scenario (parley run without --scenarios)"
+        )
     options = case.options_from_json(run.summary.get("options", {}))
     if case.warm_up is not None:
         case.warm_up(options, reporter)
