@@ -71,6 +71,7 @@ def compare(name: str, options: dict[str, str], specs: list[str], settings: Sear
     everything = np.vstack(list(sets.values()))
     reference = metrics.reference_point(objectives, everything, everything)
     hv = {key: metrics.hypervolume(values, directions, reference) for key, values in sets.items()}
+    picks = requirement_picks(sets, objectives)
     knees = {
         front: sets[front, "worst case"][
             metrics.knee(sets[front, "nominal" if front == "nominal front" else "worst case"], directions)
@@ -84,9 +85,33 @@ def compare(name: str, options: dict[str, str], specs: list[str], settings: Sear
         "sizes": (len(nominal.front), len(robust.front)),
         "seconds": (nominal_seconds, robust_seconds),
         "knees": knees,
+        "picks": picks,
         "objectives": [o.name for o in objectives],
         "reference": reference,
     }
+
+
+def requirement_picks(sets: dict, objectives) -> dict:
+    """A requirement on the first objective (the nominal front's median value) and the best
+    second objective under it: the policy a user would pick from the nominal front by its
+    nominal values, and from the robust front by its worst cases; each one's values nominally
+    and in the worst case."""
+    first, second = objectives[0], objectives[1]
+    nominal = sets["nominal front", "nominal"]
+    level = float(np.median(nominal[:, 0]))
+
+    def meets(values):
+        return values[:, 0] >= level if first.direction.value == "max" else values[:, 0] <= level
+
+    def best(values, feasible):
+        column = values[:, 1] * (1 if second.direction.value == "min" else -1)
+        return int(np.flatnonzero(feasible)[np.argmin(column[feasible])])
+
+    out = {"level": level}
+    for front, judged in (("nominal front", "nominal"), ("robust front", "worst case")):
+        chosen = best(sets[front, judged], meets(sets[front, judged]))
+        out[front] = {where: sets[front, where][chosen] for where in ("nominal", "worst case")}
+    return out
 
 
 def main() -> None:
@@ -118,6 +143,18 @@ def main() -> None:
         for front, values in r["knees"].items():
             shown = ", ".join(f"{n} {v:.4g}" for n, v in zip(r["objectives"], values))
             print(f"  {r['case']}: {front}'s knee: {shown}")
+    print()
+    print("a requirement on the first objective (the nominal front's median), the best second objective under it:")
+    for r in rows:
+        picks = r["picks"]
+        first, second = r["objectives"][:2]
+        for front in ("nominal front", "robust front"):
+            by = "nominal values" if front == "nominal front" else "worst cases"
+            shown = "; ".join(
+                f"{where}: {first} {picks[front][where][0]:.4g}, {second} {picks[front][where][1]:.4g}"
+                for where in ("nominal", "worst case")
+            )
+            print(f"  {r['case']} ({first} bound {picks['level']:.4g}), picked from the {front} by its {by}: {shown}")
     print(
         "reference points: "
         + "; ".join(f"{r['case']} {tuple(round(float(v), 4) for v in r['reference'])}" for r in rows)
