@@ -10,6 +10,11 @@ directories), and an :class:`Estimator` that weighs the observed events under ea
   :class:`EventModel` says which transitions of its model are trials and how likely an
   outcome is under each parameter value; the default, :func:`bernoulli`, is for a parameter
   that *is* the probability of the observed event per trial;
+- how likely an outcome is comes from the model itself where it can: ``parley adapt``
+  *calibrates* the controller (:class:`Calibration`), running each policy's DTMC at each
+  value (Storm builds it) for many missions and counting the outcomes per context, so the
+  estimator weighs the events as the model predicts them under the policy in force; a
+  controller without a calibration uses the event model's ``probability``;
 - the estimator keeps each value's log-likelihood of the events seen, discounted by
   ``forgetting`` at every mission's end (so that it follows a drift), and
 - :meth:`AdaptiveURC.adapt`, called between missions, switches to the most likely value's
@@ -63,11 +68,54 @@ class EventModel:
     probability: Likelihood = bernoulli
 
 
+PolicyLikelihood = Callable[[int, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+"""``likelihood(value_index, policies, outcomes, contexts)``: each event's probability under
+the controller's ``value_index``-th value, given the index of the policy in force when it
+happened."""
+
+
+def _rates(value) -> np.ndarray:
+    return np.asarray(value, dtype=float)
+
+
+@frozen(kw_only=True)
+class Calibration:
+    """Per parameter value, policy and context, the probability of outcome 1 as the model
+    predicts it: ``(ones + 1) / (trials + 2)`` over ``missions`` simulated missions of the
+    policy's DTMC at the value (a context never seen there gets the policy's rate over all
+    contexts)."""
+
+    contexts: tuple[int, ...] = field(converter=lambda v: tuple(int(x) for x in v))
+    rates: np.ndarray = field(converter=_rates, eq=False)
+    """[values, policies, contexts]"""
+    missions: int
+
+    def __eq__(self, other: object) -> bool:
+        return (
+            isinstance(other, Calibration)
+            and (self.contexts, self.missions) == (other.contexts, other.missions)
+            and np.array_equal(self.rates, other.rates)
+        )
+
+    def likelihood(self, value: int, policies: np.ndarray, outcomes: np.ndarray, contexts: np.ndarray) -> np.ndarray:
+        known = np.array(self.contexts)
+        index = np.clip(np.searchsorted(known, contexts), 0, len(known) - 1)
+        rate = self.rates[value, np.asarray(policies, dtype=np.int64), index]
+        return np.where(np.asarray(outcomes, dtype=bool), rate, 1.0 - rate)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"missions": self.missions, "contexts": list(self.contexts), "rates": self.rates.tolist()}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Calibration:
+        return cls(contexts=data["contexts"], rates=data["rates"], missions=int(data["missions"]))
+
+
 @frozen(kw_only=True)
 class Estimator:
     """Settings of the estimator (module docstring)."""
 
-    forgetting: float = field(default=0.8, validator=[validators.gt(0.0), validators.le(1.0)])
+    forgetting: float = field(default=0.9, validator=[validators.gt(0.0), validators.le(1.0)])
     """Each mission's end multiplies every log-likelihood by this (1: never forget)."""
     hysteresis: float = field(default=2.0, validator=validators.ge(0.0))
     """Switch when another value's log-likelihood exceeds the current one's by this much."""
@@ -78,18 +126,20 @@ class Beliefs:
     many; the runtime URC one): per system, each value's discounted log-likelihood and the
     index of the value whose policy is in force."""
 
-    def __init__(self, values: Sequence[float], estimator: Estimator, probability: Likelihood, n: int, start: int):
+    def __init__(self, values: Sequence[float], estimator: Estimator, likelihood: PolicyLikelihood, n: int, start: int):
         self.values = tuple(float(v) for v in values)
         self.estimator = estimator
-        self.probability = probability
+        self.likelihood = likelihood
         self.scores = np.zeros((n, len(self.values)))
         self.current = np.full(n, start, dtype=np.int64)
 
     def observe(self, systems: np.ndarray, outcomes: np.ndarray, contexts: np.ndarray) -> None:
-        """Events of ``systems`` (indices, one per event; a system may appear several times)."""
-        for j, value in enumerate(self.values):
+        """Events of ``systems`` (indices, one per event; a system may appear several times),
+        under the policy each system has in force."""
+        policies = self.current[systems]
+        for j in range(len(self.values)):
             with np.errstate(divide="ignore"):
-                logs = np.log(np.clip(self.probability(value, outcomes, contexts), 0.0, 1.0))
+                logs = np.log(np.clip(self.likelihood(j, policies, outcomes, contexts), 0.0, 1.0))
             np.add.at(self.scores[:, j], systems, logs)
 
     def adapt(self) -> np.ndarray:
@@ -123,6 +173,8 @@ class AdaptiveController:
     estimator: Estimator = field(factory=Estimator)
     start: int = 0
     """The value whose policy is in force before any event (default: the first)."""
+    calibration: Calibration | None = None
+    """The model's predictions of the events (None: the event model's ``probability``)."""
 
     def __attrs_post_init__(self) -> None:
         if len(self.values) != len(self.controllers) or len(self.values) < 2:
@@ -136,6 +188,18 @@ class AdaptiveController:
         if not 0 <= self.start < len(self.values):
             raise PolicyError(f"start {self.start} is not the index of one of the {len(self.values)} values")
 
+    def likelihood(self, probability: Likelihood = bernoulli) -> PolicyLikelihood:
+        """How the estimator weighs an event: by the calibration if there is one, else by
+        ``probability`` (the case study's event model's) of the value."""
+        if self.calibration is not None:
+            return self.calibration.likelihood
+        values = self.values
+
+        def by_value(value: int, policies: np.ndarray, outcomes: np.ndarray, contexts: np.ndarray) -> np.ndarray:
+            return probability(values[value], outcomes, contexts)
+
+        return by_value
+
     def runtime(self, probability: Likelihood = bernoulli) -> AdaptiveURC:
         return AdaptiveURC(self, probability)
 
@@ -145,6 +209,7 @@ class AdaptiveController:
             "parameter": self.parameter,
             "estimator": {"forgetting": self.estimator.forgetting, "hysteresis": self.estimator.hysteresis},
             "start": self.start,
+            **({"calibration": self.calibration.to_json()} if self.calibration is not None else {}),
             "scenarios": [
                 {"value": value, "controller": urc.to_json()} for value, urc in zip(self.values, self.controllers)
             ],
@@ -172,6 +237,7 @@ class AdaptiveController:
                 controllers=[URC.from_json(s["controller"]) for s in data["scenarios"]],
                 estimator=Estimator(**{k: float(v) for k, v in data.get("estimator", {}).items()}),
                 start=int(data.get("start", 0)),
+                calibration=Calibration.from_json(data["calibration"]) if "calibration" in data else None,
             )
         except (KeyError, TypeError, ValueError, ParleyError) as exc:
             raise PolicyError(f"controller file {path} is malformed ({exc}); write it with `parley adapt`") from None
@@ -191,7 +257,9 @@ class AdaptiveURC:
 
     def __init__(self, controller: AdaptiveController, probability: Likelihood = bernoulli) -> None:
         self.controller = controller
-        self._beliefs = Beliefs(controller.values, controller.estimator, probability, 1, controller.start)
+        self._beliefs = Beliefs(
+            controller.values, controller.estimator, controller.likelihood(probability), 1, controller.start
+        )
         self.switches: list[tuple[int, float, float]] = []
         """(mission, old value, new value) of every switch."""
         self.missions = 0

@@ -18,14 +18,14 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 import stormpy
 from attrs import field, frozen
 
-from parley_core.adaptive import AdaptiveController, Beliefs, EventModel
+from parley_core.adaptive import AdaptiveController, Beliefs, Calibration, EventModel
 from parley_core.errors import ModelError, OptionError
 from parley_core.evaluate.storm import check_values, reference_environment
 from parley_core.model import Family
@@ -289,7 +289,13 @@ def simulate_drift(
         rng = np.random.default_rng([seed, c])
         rows = policies[name]
         beliefs = (
-            Beliefs(controller.values, controller.estimator, events.probability, episodes, controller.start)
+            Beliefs(
+                controller.values,
+                controller.estimator,
+                controller.likelihood(events.probability),
+                episodes,
+                controller.start,
+            )
             if isinstance(controller, AdaptiveController) and events is not None
             else None
         )
@@ -305,7 +311,8 @@ def simulate_drift(
             for j in np.unique(current):
                 systems = np.flatnonzero(current == j)
                 chain = chains[rows[j], int(level_of[m])]
-                found, stopped = _episodes(chain, plans, len(systems), horizon, rng, beliefs, systems, events)
+                seen = None if beliefs is None else _observer(beliefs, systems)
+                found, stopped = _episodes(chain, plans, len(systems), horizon, rng, seen, events)
                 cut += stopped
                 for o in objectives:
                     outcome[o][systems] = found[o]
@@ -364,18 +371,29 @@ def _names(name: str, controller: Controller) -> tuple[str, ...]:
     return (controller.policy or name,)
 
 
+Observer = Callable[[np.ndarray, np.ndarray, np.ndarray], None]
+"""``observer(systems, outcomes, contexts)``: events of a mission's systems (0..n-1)."""
+
+
+def _observer(beliefs: Beliefs, systems: np.ndarray) -> Observer:
+    def observe(which: np.ndarray, outcomes: np.ndarray, contexts: np.ndarray) -> None:
+        beliefs.observe(systems[which], outcomes, contexts)
+
+    return observe
+
+
 def _episodes(
     chain: Chain,
     plans: list,
     n: int,
     horizon: int,
     rng: np.random.Generator,
-    beliefs: Beliefs | None,
-    systems: np.ndarray,
+    observer: Observer | None,
     events: EventModel | None,
 ) -> tuple[dict[str, np.ndarray], int]:
     """One mission of ``n`` systems on ``chain``: each objective's outcome per system (1/0 or
-    the reward), and how many were stopped at ``horizon`` without reaching a sink."""
+    the reward), and how many were stopped at ``horizon`` without reaching a sink; the
+    events of ``events`` go to ``observer``."""
     state = np.full(n, chain.initial, dtype=np.int64)
     reached = {p[1]: np.zeros(n, dtype=bool) for p in plans if p[0] == "reach"}
     totals = {p[1]: np.zeros(n) for p in plans if p[0] == "reward"}
@@ -395,19 +413,66 @@ def _episodes(
         if step == horizon or not alive.any():
             break
         following = np.where(alive, chain.step(state, rng), state)
-        if beliefs is not None and events is not None:
+        if observer is not None and events is not None:
             moving = np.flatnonzero(alive)
             before = {k: v[state[moving]] for k, v in chain.variables.items()}
             after = {k: v[following[moving]] for k, v in chain.variables.items()}
             trial, outcome, context = events.events(before, after)
             trial = np.asarray(trial, dtype=bool)
             if trial.any():
-                beliefs.observe(systems[moving[trial]], np.asarray(outcome)[trial], np.asarray(context)[trial])
+                observer(moving[trial], np.asarray(outcome)[trial], np.asarray(context)[trial])
         state = following
         step += 1
     values: dict[str, Any] = {name: hit.astype(float) for name, hit in reached.items()}
     values.update(totals)
     return values, int(alive.sum())
+
+
+def calibrate(
+    families: Sequence[Family],
+    parameter: str,
+    values: Sequence[float],
+    urcs: Sequence[URC],
+    events: EventModel,
+    *,
+    missions: int = 1000,
+    seed: int = 1,
+    max_steps: int = 10_000,
+    reporter: Reporter | None = None,
+) -> Calibration:
+    """The model's predictions of the events (:class:`~parley_core.adaptive.Calibration`):
+    every policy's DTMC at every value (Storm builds it from ``families[i]``, the run of
+    ``values[i]``, with the constant set), ``missions`` missions each, outcomes counted per context."""
+    reporter = reporter or NullReporter()
+    reporter.stage("calibrate the estimator", len(values) * len(urcs))
+    counts: dict[tuple[int, int], dict[int, list[int]]] = {}
+    for i, (family, value) in enumerate(zip(families, values)):
+        for j, urc in enumerate(urcs):
+            chain = build_chain(family, policy_values(family, urc), parameter, value, events.variables)
+            plans = [p for p in chain.plans if not isinstance(p, str)]
+            horizon = max(max_steps if p[3] is None else p[3] for p in plans)
+            seen: dict[int, list[int]] = {}
+
+            def count(_which, outcomes, contexts, seen=seen) -> None:
+                for outcome, context in zip(np.asarray(outcomes).tolist(), np.asarray(contexts).tolist()):
+                    entry = seen.setdefault(int(context), [0, 0])
+                    entry[0] += int(outcome)
+                    entry[1] += 1
+
+            rng = np.random.default_rng([seed, i, j])
+            _episodes(chain, plans, missions, horizon, rng, count, events)
+            counts[i, j] = seen
+            reporter.advance(1)
+    contexts = sorted({k for seen in counts.values() for k in seen}) or [0]
+    rates = np.empty((len(values), len(urcs), len(contexts)))
+    for (i, j), seen in counts.items():
+        ones = sum(e[0] for e in seen.values())
+        trials = sum(e[1] for e in seen.values())
+        overall = (ones + 1) / (trials + 2)
+        for c, context in enumerate(contexts):
+            one, n = seen.get(context, (0, 0))
+            rates[i, j, c] = (one + 1) / (n + 2) if n else overall
+    return Calibration(contexts=contexts, rates=rates, missions=missions)
 
 
 def to_json(result: DriftResult) -> dict[str, Any]:
@@ -464,17 +529,15 @@ def plot(result: DriftResult, path) -> None:
     missions = np.arange(result.missions)
     drift = result.drift
     for ax, objective in zip(axes, result.objectives):
-        for series in result.series:
-            line = ax.plot(missions, series.means[objective], lw=1.2, label=series.name)[0]
-            ax.fill_between(
-                missions, series.lows[objective], series.highs[objective], color=line.get_color(), alpha=0.15
-            )
+        for k, series in enumerate(result.series):
+            ax.plot(missions, series.means[objective], lw=1.2, label=series.name, color=f"C{k}")
+            ax.fill_between(missions, series.lows[objective], series.highs[objective], color=f"C{k}", alpha=0.15)
         ax.set_ylabel(objective)
         ax.grid(alpha=0.3)
     share = axes[-1]
-    for series in result.series:
+    for k, series in enumerate(result.series):
         if series.in_force.shape[1] > 1:
-            share.plot(missions, series.in_force[:, -1] / result.episodes, lw=1.2, label=series.name)
+            share.plot(missions, series.in_force[:, -1] / result.episodes, lw=1.2, label=series.name, color=f"C{k}")
     share.set_ylabel(f"on the last\n{drift.parameter} policy")
     share.set_ylim(-0.05, 1.05)
     share.set_xlabel("mission")

@@ -259,3 +259,23 @@ def test_cli_warm_start_needs_a_run_of_the_same_family(tmp_path):
     other = [a for a in quick if not a.startswith("--set=size")] + ["--set=size=6"]
     result = runner.invoke(app, ["run", "robot_grid", *other, "--warm-start", str(first), "--out", str(tmp_path / "x")])
     assert result.exit_code == 2 and len(result.stderr.strip().splitlines()) == 1, result.stderr
+
+
+def test_the_calibration_counts_the_models_events(robot_family, tmp_path):
+    from parley_core.drift import calibrate
+
+    family = robot_family
+    urcs = [_urc(family, [3] * len(family.decisions), "every-3"), _urc(family, [1] * len(family.decisions), "every-1")]
+    found = calibrate([family, family], "p", [0.01, 0.05], urcs, SLIP, missions=300, seed=1)
+    assert found.rates.shape == (2, 2, len(found.contexts)) and found.missions == 300
+    assert found.contexts == (1, 3)  # every-1 localises after each move, every-3 after three
+    k1, k3 = found.contexts.index(1), found.contexts.index(3)
+    # a slipperier robot is found astray more often, and more so after three moves than after one
+    assert (found.rates[1, :, :] > found.rates[0, :, :]).all()
+    assert found.rates[1, 0, k3] > found.rates[1, 1, k1]
+    controller = AdaptiveController(parameter="p", values=[0.01, 0.05], controllers=urcs, calibration=found)
+    likelihood = controller.likelihood()
+    probabilities = likelihood(1, np.array([1, 1]), np.array([1, 0]), np.array([1, 1]))
+    assert probabilities[0] == pytest.approx(found.rates[1, 1, k1]) and probabilities.sum() == pytest.approx(1.0)
+    controller.save(tmp_path / "adaptive.json")
+    assert AdaptiveController.load(tmp_path / "adaptive.json") == controller

@@ -199,33 +199,28 @@ def _simulate_drift(
         print(json.dumps(document, indent=2))
         return
     table = Table(
-        title=f"{episodes} systems x {missions} missions, drift {drift} (seed {seed}); means with 99% intervals",
+        title=f"{episodes} systems x {missions} missions, drift {drift} (seed {seed}): means with 99% intervals",
         title_justify="left",
     )
-    table.add_column("controller")
-    for phase in ("before", "after"):
-        for objective in result.objectives:
-            table.add_column(f"{objective} {phase}", justify="right")
-    table.add_column("Storm (before / after)", justify="right")
-    for entry, series in zip(document["controllers"], result.series):
-        cells = []
-        for phase in ("before", "after"):
-            for objective in result.objectives:
-                found = entry["phases"].get(phase, {}).get(objective)
-                cells.append(
-                    f"{fmt(found['mean'])} [{fmt(found['low'])}, {fmt(found['high'])}]" if found is not None else "-"
-                )
-        storm = "; ".join(
-            f"{policy}: "
-            + " / ".join(
-                ", ".join(fmt(v) for v in series.checked[policy, level])
-                for level in (result.levels[0], result.levels[-1])
-            )
-            for policy in series.policies
-        )
-        table.add_row(series.name, *cells, storm)
+    for column in ("controller", "missions", *result.objectives):
+        table.add_column(column, justify="left" if column == "controller" else "right")
+    for entry in document["controllers"]:
+        for phase, found in entry["phases"].items():
+            first, last = found["missions"]
+            cells = [
+                f"{found[o]['mean']:.4g} [{found[o]['low']:.4g}, {found[o]['high']:.4g}]" for o in result.objectives
+            ]
+            table.add_row(entry["name"], f"{phase} the drift ({first}-{last - 1})", *cells)
+    storm = Table(title="Storm's values of the controllers' policies", title_justify="left")
+    for column in ("controller", "policy", drift.parameter, *result.objectives):
+        storm.add_column(column, justify="left" if column in ("controller", "policy") else "right")
+    for series in result.series:
+        for (policy, level), values in series.checked.items():
+            if level in (result.levels[0], result.levels[-1]):
+                storm.add_row(series.name, policy, f"{level:g}", *(f"{v:.4g}" for v in values))
     console = Console()
     console.print(table)
+    console.print(storm)
     for series in result.series:
         if series.in_force.shape[1] > 1:
             final = series.in_force[-1] / episodes
@@ -250,10 +245,18 @@ def adapt_command(
     ] = None,
     forgetting: Annotated[
         float, typer.Option(min=0.0, max=1.0, help="Each mission's end multiplies the log-likelihoods by this.")
-    ] = 0.8,
+    ] = 0.9,
     hysteresis: Annotated[
         float, typer.Option(min=0.0, help="Switch when another value is this much more likely (log-likelihood).")
     ] = 2.0,
+    calibration: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            help="Missions per policy and value that calibrate the estimator on the model (0: use the event model's "
+            "own probabilities).",
+        ),
+    ] = 1000,
     out: Annotated[Path, typer.Option(help="Adaptive controller file to write.")] = Path("adaptive.json"),
 ) -> None:
     """An adaptive URC: from each run (one value of a drifting parameter each) the policy `parley select` would
@@ -288,12 +291,37 @@ def adapt_command(
             raise OptionError(f"run {path}: option {parameter}={options[parameter]!r} is not a number") from None
     urcs = [controller(run, select(run, constraints(constraint), prefer)) for run in loaded]
     order = sorted(range(len(values)), key=lambda i: values[i])
+    found = None
+    if calibration:
+        from parley_core.cli.common import registry
+        from parley_core.cli.console import RichReporter, stderr
+        from parley_core.drift import calibrate
+        from parley_core.usermodel import family_of_run
+
+        case = registry().case_studies.get(str(first.summary.get("case_study", "")))
+        events = case.events.get(parameter) if case is not None else None
+        if events is None:
+            raise OptionError(
+                f"no event model for {parameter} (the case study's plugin says what the system observes about it); "
+                "an adaptive controller cannot estimate it"
+            )
+        with RichReporter(stderr()) as reporter:
+            found = calibrate(
+                [family_of_run(loaded[i]) for i in order],
+                parameter,
+                [values[i] for i in order],
+                [urcs[i] for i in order],
+                events,
+                missions=calibration,
+                reporter=reporter,
+            )
     adaptive = AdaptiveController(
         parameter=parameter,
         values=[values[i] for i in order],
         controllers=[urcs[i] for i in order],
         estimator=Estimator(forgetting=forgetting, hysteresis=hysteresis),
         start=order.index(0),
+        calibration=found,
     )
     adaptive.save(out)
     chosen = ", ".join(f"{parameter}={values[i]:g}: {urcs[i].policy}" for i in order)
