@@ -6,8 +6,9 @@ the dose, or the alarm service to send an alarm. When the primary analysis provi
 the workflow fails over to a backup provider, whose health drifts unseen; the
 uncertainty-aware controller (UAC) picks the backup or a dearer, stable alternative by its
 *estimate* of the backup's health. A probe (a test invocation of the backup, at a cost)
-makes the estimate exact. The URC decides, per estimated backup level and load phase,
-after how many executions to probe (or never). See docs/tas.md.
+makes the estimate exact (or, with ``probe_error``, misreports the level now and then). The
+URC decides, per estimated backup level and load phase, after how many executions to probe
+(or never). See docs/tas.md.
 """
 
 from __future__ import annotations
@@ -69,6 +70,11 @@ class TasOptions:
         1 / 3, "probability that an analysis asks for a dose change (TAS: 1/3); the rest: patient ok", probability
     )
     probe_cost: float = option(MAS5.cost, "cost of a probe (a test invocation of the backup)", validators.ge(0.0))
+    probe_error: float = option(
+        0.0,
+        "probability that a probe misreports the backup's level (then each other level equally likely)",
+        probability,
+    )
     response_time: bool = option(False, "add a third objective: expected response time per execution (ms)")
 
 
@@ -101,6 +107,7 @@ def scenario(options: TasOptions) -> Scenario:
         p_drug=options.p_drug,
         p_dose=options.p_dose,
         probe_cost=options.probe_cost,
+        probe_error=options.probe_error,
     )
 
 

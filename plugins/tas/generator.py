@@ -9,7 +9,9 @@ t     action(s)           what happens
 0     ``env``             the backup's health level ``b`` drifts one level worse (``degrade``)
                           or better (``recover``); the load phase switches (normal <-> peak)
 1     ``probe``           the uncertainty-reduction service: once ``step`` reaches ``c``, a test
-      ``noprobe``         invocation of the backup reveals its level (``bhat := b``), at a cost
+      ``noprobe``         invocation of the backup reveals its level (``bhat := b``), at a cost;
+                          an imperfect probe (``probe_error``) misreports it, see
+                          :func:`probe_updates`
 2     ``request``         the patient's device sends vital parameters (analysis needed) or the
                           panic button is pressed (alarm needed)
 3     ``analyse``         the primary medical analysis provider; if it fails the workflow fails
@@ -115,6 +117,7 @@ class Scenario:
     p_drug: float
     p_dose: float
     probe_cost: float
+    probe_error: float = 0.0
     roles: Roles = Roles()
 
     @property
@@ -166,7 +169,7 @@ def prism_model(s: Scenario) -> str:
             Variable(name="step", low=1, high="maxStep", init=1, comment="executions since the last probe, capped"),
         ],
         commands=[
-            Command(action="probe", guard="step>=c", updates=[Update(assignments={"bhat": "b", "step": "1"})]),
+            Command(action="probe", guard="step>=c", updates=probe_updates(s.probe_error, top)),
             Command(action="noprobe", guard="step<c", updates=[Update(assignments={"step": "min(step+1, maxStep)"})]),
         ],
     )
@@ -310,6 +313,7 @@ def prism_model(s: Scenario) -> str:
                 ("Drug", roles.drug.response_time),
             )
         ),
+        *_probe_error_constants(s.probe_error),
     ]
     formulas = [
         Formula(name="fBackup", expression=_by_level("b", top)),
@@ -369,6 +373,35 @@ def prism_model(s: Scenario) -> str:
         rewards=rewards,
         labels=labels,
     ).render()
+
+
+def _probe_error_constants(error: float) -> list[Constant]:
+    """The probe's misreport probability as a constant, declared only when it is positive."""
+    if error == 0.0:
+        return []
+    return [Constant(name="pProbeError", type="double", value=error, comment="P(a probe misreports the level)")]
+
+
+def probe_updates(error: float, top: int) -> list[Update]:
+    """What a probe writes into ``bhat`` (and ``step``), with misreport probability ``error``.
+
+    A perfect probe (``error=0``) writes the true level, ``bhat := b``. An imperfect one
+    reports the true level with probability ``1-error`` and each of the other ``top`` levels
+    with probability ``error/top``: a wrong report says nothing about which level is wrong.
+    The other levels are ``mod(b+k, L+1)`` for k = 1..L (each once, whatever ``b``), so one
+    command covers every level. Only reports of positive probability are written, so every
+    ``error`` in [0, 1] gives distributions that sum to 1 (also in exact arithmetic). At
+    ``error = top/(top+1)`` every level is reported with probability ``1/(top+1)``: the probe
+    carries no information.
+    """
+    if error == 0.0:
+        return [Update(assignments={"bhat": "b", "step": "1"})]
+    right = [] if error == 1.0 else [Update(probability="1-pProbeError", assignments={"bhat": "b", "step": "1"})]
+    wrong = [
+        Update(probability="pProbeError/L", assignments={"bhat": f"mod(b+{k}, L+1)", "step": "1"})
+        for k in range(1, top + 1)
+    ]
+    return right + wrong
 
 
 def _results(s: Scenario) -> list[tuple[str, int]]:

@@ -4,7 +4,8 @@ A web server A and a database B; an attacker may compromise A, then B. An intrus
 detection system (IDS) gives a noisy estimate (0..9) of A being compromised, less reliable
 when its rules are stale. The adaptation controller restores A when the estimate reaches 3,
 and A and B when B is seen compromised; restoring costs more in business hours than at
-night. The uncertainty-reduction service ``scanA`` reveals A's true state at a cost. The URC
+night. The uncertainty-reduction service ``scanA`` reveals A's true state at a cost (or, with
+``scan_fn``/``scan_fp``, reports it with false negatives and false positives). The URC
 chooses, per cost level of the hour and state of the IDS's rules, the threshold of the
 estimate at which to scan. Details and every difference from the published model:
 docs/web_ids.md.
@@ -74,6 +75,18 @@ class WebIdsOptions:
     breach_cost: float = field(
         default=500.0, converter=float, validator=_cost, metadata={"help": "cost of a round with B compromised"}
     )
+    scan_fn: float = field(
+        default=0.0,
+        converter=float,
+        validator=probability,
+        metadata={"help": "false-negative rate of the scan: probability that it reports a compromised A clean"},
+    )
+    scan_fp: float = field(
+        default=0.0,
+        converter=float,
+        validator=probability,
+        metadata={"help": "false-positive rate of the scan: probability that it reports a clean A compromised"},
+    )
 
 
 def build(options: WebIdsOptions) -> SystemModel:
@@ -86,6 +99,8 @@ def build(options: WebIdsOptions) -> SystemModel:
         restore_at=options.restore_at,
         scan_cost=options.scan_cost,
         breach_cost=options.breach_cost,
+        scan_fn=options.scan_fn,
+        scan_fp=options.scan_fp,
     )
     steps = STEPS_PER_ROUND * options.rounds
     return SystemModel(

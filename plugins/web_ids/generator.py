@@ -12,7 +12,10 @@ exactly ``rounds`` rounds):
    compromised B is seen (it goes offline, as in the published model): ``bhat=1``,
    ``ahat=10``; that round costs ``breach_cost`` (reward "infected").
 3. ``scan`` (``ahat >= th`` and B not known to be compromised) or ``noscan``: the scan
-   reveals A's true state (``ahat := 10`` if compromised, ``0`` if clean) at ``scan_cost``.
+   reports A's state (``ahat := 10`` if compromised, ``0`` if clean) at ``scan_cost``. A
+   perfect scan (the default) reports the true state; an imperfect one misses a compromised
+   A with probability ``scan_fn`` (reports 0) and flags a clean A with probability
+   ``scan_fp`` (reports 10), and the controller trusts the report either way.
 4. The adaptation controller (UAC) acts on its estimates: ``restoreAB`` if ``bhat=1``,
    ``restoreA`` if ``ahat >= restore_at``, ``NOP`` otherwise. Restoring costs by the
    time-of-day level (night, business hours, evening). The estimates are cleared for the
@@ -90,8 +93,14 @@ def prism_model(
     restore_at: int,
     scan_cost: float,
     breach_cost: float,
+    scan_fn: float = 0.0,
+    scan_fp: float = 0.0,
 ) -> str:
-    """The DTMC text; the scan threshold is the undefined constant ``th``."""
+    """The DTMC text; the scan threshold is the undefined constant ``th``.
+
+    ``scan_fn`` and ``scan_fp`` are the scan's false-negative and false-positive rates; at 0
+    (both) the text is exactly that of a perfect scan, with no trace of them.
+    """
     servers = Module(
         name="Servers",
         variables=[
@@ -159,7 +168,7 @@ def prism_model(
         commands=[
             *reports,
             Command(action="ids", guard="b=1", updates=[Update(assignments={"ahat": str(KNOWN), "bhat": "1"})]),
-            Command(action="scan", updates=[Update(assignments={"ahat": f"a*{KNOWN}"})]),
+            *scan_commands(scan_fn, scan_fp),
             Command(action="noscan"),
             Command(action="NOP", updates=[Update(assignments={"ahat": "0"})]),
             Command(action="restoreA", updates=[Update(assignments={"ahat": "0"})]),
@@ -214,6 +223,7 @@ def prism_model(
             Constant(
                 name="breachCost", type="double", value=float(breach_cost), comment="per round with B compromised"
             ),
+            *scan_error_constants(scan_fn, scan_fp),
             Constant(name="th", comment=f"scan A when ahat >= th, 0..{MAX_THRESHOLD}"),
         ],
         modules=[servers, clock, ids, knowledge, controller, round_],
@@ -228,6 +238,48 @@ def prism_model(
         ],
     )
     return program.render()
+
+
+def scan_commands(scan_fn: float, scan_fp: float) -> list[Command]:
+    """The Knowledge module's ``scan`` commands: what a scan writes into ``ahat``.
+
+    A perfect scan is one command, ``ahat := a*10``. An imperfect one is a command per true
+    state of A, each a distribution over the two reports: a compromised A is reported clean
+    (``ahat := 0``) with probability ``scanFN``, a clean A compromised (``ahat := 10``) with
+    probability ``scanFP``. Only reports of positive probability are written, so every rate
+    in [0, 1] gives a DTMC whose distributions sum to 1 (also in exact arithmetic).
+    """
+    if scan_fn == 0.0 and scan_fp == 0.0:
+        return [Command(action="scan", updates=[Update(assignments={"ahat": f"a*{KNOWN}"})])]
+    return [
+        Command(action="scan", guard="a=1", updates=_report(KNOWN, 0, "scanFN", scan_fn)),
+        Command(action="scan", guard="a=0", updates=_report(0, KNOWN, "scanFP", scan_fp)),
+    ]
+
+
+def _report(right: int, wrong: int, name: str, rate: float) -> list[Update]:
+    """A scan's report: ``right`` with probability 1-``name``, ``wrong`` with ``name`` (its value ``rate``)."""
+    if rate == 0.0:
+        return [Update(assignments={"ahat": str(right)})]
+    if rate == 1.0:
+        return [Update(assignments={"ahat": str(wrong)})]
+    return [
+        Update(probability=f"1-{name}", assignments={"ahat": str(right)}),
+        Update(probability=name, assignments={"ahat": str(wrong)}),
+    ]
+
+
+def scan_error_constants(scan_fn: float, scan_fp: float) -> list[Constant]:
+    """The constants of the scan's error rates, each declared only when it is positive."""
+    rates = (
+        ("scanFN", scan_fn, "P(a scan reports a compromised A clean)"),
+        ("scanFP", scan_fp, "P(a scan reports a clean A compromised)"),
+    )
+    return [
+        Constant(name=name, type="double", value=float(rate), comment=comment)
+        for name, rate, comment in rates
+        if rate > 0.0
+    ]
 
 
 def _choice(probability: str, assignments: Mapping[str, str]) -> Sequence[Update]:

@@ -30,6 +30,12 @@ ALARM = {"fail": 0.04, "cost": 12.0, "time": 9.0}  # AS2
 DRUG = {"fail": 0.01, "cost": 5.0, "time": 1.0}  # DS
 
 
+def probe_reports(o, level: int, top: int) -> list[tuple[float, int]]:
+    """(probability, reported level) of a probe of a backup at ``level``: the true level with
+    probability 1 - probe_error, each of the ``top`` other levels with probe_error / top."""
+    return [(1 - o.probe_error if j == level else o.probe_error / top, j) for j in range(top + 1)]
+
+
 def reference(o, policy) -> tuple[float, float, float]:
     """Per-execution means of failure, cost and response time over o.rounds executions.
 
@@ -74,10 +80,13 @@ def reference(o, policy) -> tuple[float, float, float]:
                 if q == 0:
                     continue
                 probe = step >= policy[(bhat, load2)]
-                bhat2, step2 = (b2, 1) if probe else (bhat, min(step + 1, o.max_interval))
-                totals += q * np.array(execution(b2, load2, bhat2))
+                reports, step2 = (
+                    (probe_reports(o, b2, top), 1) if probe else ([(1.0, bhat)], min(step + 1, o.max_interval))
+                )
+                for y, bhat2 in reports:
+                    totals += q * y * np.array(execution(b2, load2, bhat2))
+                    following[(b2, load2, bhat2, step2)] += q * y
                 totals[1] += q * probe * o.probe_cost
-                following[(b2, load2, bhat2, step2)] += q
         distribution = following
     return tuple(totals / o.rounds)
 

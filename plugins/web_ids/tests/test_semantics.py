@@ -36,6 +36,14 @@ def period(hour: int) -> str:
     return "night" if hour in NIGHT else ("business" if hour in BUSINESS else "evening")
 
 
+def scan_reports(options, compromised: int) -> list[tuple[float, int]]:
+    """(probability, estimate) of a scan's reports: 10 for "compromised", 0 for "clean"; a
+    compromised A is missed with probability scan_fn, a clean one flagged with scan_fp."""
+    if compromised:
+        return [(1 - options.scan_fn, 10), (options.scan_fn, 0)]
+    return [(1 - options.scan_fp, 0), (options.scan_fp, 10)]
+
+
 def reference(options, policy) -> tuple[float, float]:
     """(expected infected cost, expected cost of restores and scans) over ``options.rounds``.
 
@@ -74,14 +82,16 @@ def reference(options, policy) -> tuple[float, float]:
                     reports.append((1 - options.ids_error, 10 if a2 else 0))
                     threshold = policy[(level_index[when], fresh)]
                     for x, estimate in reports:
+                        seen = [(1.0, estimate)]
                         if estimate >= threshold:
                             cost += w * x * options.scan_cost
-                            estimate = 10 if a2 else 0
-                        if estimate >= options.restore_at:
-                            cost += w * x * RESTORE_A[when]
-                            land((0, 0), w * x)
-                        else:
-                            land((a2, b2), w * x)
+                            seen = scan_reports(options, a2)
+                        for y, report in seen:
+                            if report >= options.restore_at:
+                                cost += w * x * y * RESTORE_A[when]
+                                land((0, 0), w * x * y)
+                            else:
+                                land((a2, b2), w * x * y)
         start = following
     return infected, cost
 
