@@ -83,7 +83,7 @@ class ScenarioSet:
     def parse(cls, specs: Sequence[str]) -> ScenarioSet:
         """``["p=0.005,0.01,0.02"]``, a grid ``["p=0.01,0.02", "move_cost=1,2"]`` (four
         scenarios) or ``["scenarios.csv"]`` (a header of option names, a scenario per row)."""
-        if not specs:
+        if not specs or not all(s.strip() for s in specs):
             raise OptionError("the scenario set is empty; give --scenarios KEY=V1,V2,...")
         files = [s for s in specs if "=" not in s]
         if files:

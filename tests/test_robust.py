@@ -114,6 +114,7 @@ def test_scenario_sets_parse_lists_grids_and_files(tmp_path):
     ("specs", "message"),
     [
         ([], "empty"),
+        ([""], "empty"),
         (["p="], "empty value"),
         (["p=0.1,0.1"], "twice"),
         (["p=0.1", "p=0.2"], "twice"),
