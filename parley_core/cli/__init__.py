@@ -7,13 +7,14 @@ is one JSON document and nothing else.
 - :mod:`.app`: the typer applications; :mod:`.common`: errors, case studies, limits;
   :mod:`.options`: the option types; :mod:`.console`: progress bars and tables;
 - command groups: :mod:`.case_studies` (list, options), :mod:`.synthesis` (run,
-  synthesize, augment), :mod:`.controllers` (select, simulate), :mod:`.evaluation`
+  synthesize, augment), :mod:`.controllers` (select, simulate, validate), :mod:`.adaptation` (adapt, and
+  simulate's drift mode), :mod:`.evaluation`
   (evaluate, baseline), :mod:`.experiment` (experiment run, verify, report, scalability).
 """
 
 from __future__ import annotations
 
-from parley_core.cli import case_studies, controllers, evaluation, experiment, synthesis  # noqa: F401, I001  (they register commands, in this order)
+from parley_core.cli import adaptation, case_studies, controllers, evaluation, experiment, synthesis  # noqa: F401, I001  (they register commands, in this order)
 from parley_core.cli.app import app
 
 
