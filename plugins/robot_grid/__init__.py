@@ -3,7 +3,8 @@
 A robot crosses a grid map from the lower-left to the upper-right corner, following a
 Dijkstra movement controller that acts on its *estimated* position; each move may deviate.
 A localisation service (cost 5) sets the estimate to the true position. The URC decides,
-per estimated cell, after how many moves to localise (1..10).
+per estimated cell, after how many moves to localise (1..10). With ``loc_error`` > 0 the
+localisation errs: it puts the estimate on a 4-neighbor of the true cell (docs/robot_grid.md).
 """
 
 from __future__ import annotations
@@ -24,11 +25,12 @@ from parley_core import (
     hookimpl,
     option,
     positive,
+    probability,
 )
 from parley_plugins.robot_grid import grid as grids
 from parley_plugins.robot_grid.events import SLIP
 from parley_plugins.robot_grid.generator import prism_model
-from parley_plugins.robot_grid.planner import plan
+from parley_plugins.robot_grid.planner import complete, plan
 
 
 @frozen(kw_only=True)
@@ -46,11 +48,17 @@ class RobotGridOptions:
     max_interval: int = option(10, "largest localisation interval (moves)", positive)
     move_cost: float = option(1.0, "cost of a move", validators.ge(0.0))
     localisation_cost: float = option(5.0, "cost of a localisation", validators.ge(0.0))
+    loc_error: float = option(
+        0.0,
+        "probability that a localisation puts the estimate on one of the true cell's 4-neighbors "
+        "inside the map (equally likely) instead of the true cell",
+        probability,
+    )
 
 
 def build(options: RobotGridOptions) -> SystemModel:
     grid = grids.load_csv(options.map) if options.map is not None else grids.generate(options.size, options.seed)
-    moves = plan(grid)
+    moves = plan(grid) if options.loc_error == 0 else complete(grid, plan(grid))
     text = prism_model(
         grid,
         moves,
@@ -58,6 +66,7 @@ def build(options: RobotGridOptions) -> SystemModel:
         max_interval=options.max_interval,
         move_cost=options.move_cost,
         localisation_cost=options.localisation_cost,
+        loc_error=options.loc_error,
     )
     return SystemModel(
         name="robot_grid",

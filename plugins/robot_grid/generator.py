@@ -11,7 +11,9 @@ any policy gets the same values as on those files:
   that no cell plans still appears (never enabled), so that it is in the module's alphabet.
 - ``Knowledge``: the estimate, updated as if every move succeeded, and the move counter
   ``step`` (1 after a localisation); ``localise`` (step >= c) sets the estimate to the true
-  position, ``skip`` (step < c) counts on.
+  position, ``skip`` (step < c) counts on. With ``loc_error`` > 0 the localisation errs
+  (:func:`localise_commands`): one ``localise`` command per border situation of the true
+  position, each with the exact update and one per in-map neighbor.
 - ``Turn``: move, check, then localise or skip: one robot move is three DTMC steps.
 
 Rewards "cost": ``move_cost`` per move, ``localisation_cost`` per localisation.
@@ -61,8 +63,15 @@ def prism_model(
     max_interval: int,
     move_cost: float,
     localisation_cost: float,
+    loc_error: float = 0.0,
 ) -> str:
-    """The DTMC text for ``grid`` with the movement controller ``moves``."""
+    """The DTMC text for ``grid`` with the movement controller ``moves``; with ``loc_error``
+    > 0 the localisation errs (:func:`localise_commands`), and ``moves`` must then have a
+    move for every cell but the target (:func:`~parley_plugins.robot_grid.planner.complete`).
+    With ``loc_error`` = 0 the text is exactly the one without the option."""
+    unplanned = [cell for cell in grid.cells() if cell not in moves and cell != grid.target]
+    if loc_error > 0 and unplanned:
+        raise ValueError(f"an erring localisation may put the estimate on {unplanned[0]}, which has no move")
     x_target, y_target = grid.target
     crash = disjunction(f"x={x} & {_one_of('y', ys)}" for x, ys in _by_column(grid.obstacles()).items())
 
@@ -115,11 +124,7 @@ def prism_model(
         ],
         commands=[
             *(Command(action=move, updates=[Update(assignments=[_ESTIMATE[move]])]) for move in MOVES),
-            Command(
-                action="localise",
-                guard="step>=c",
-                updates=[Update(assignments={"xhat": "x", "yhat": "y", "step": "1"})],
-            ),
+            *localise_commands(loc_error, wide=grid.width > 2, tall=grid.height > 2),
             Command(action="skip", guard="step<c", updates=[Update(assignments={"step": "step+1"})]),
         ],
     )
@@ -137,11 +142,13 @@ def prism_model(
         header=(
             f"robot_grid: {grid.width}x{grid.height} map {grid.source}; start {grid.start}, target {grid.target}.\n"
             "The localisation service runs once the move counter reaches c (every c-th move)."
+            + (_ERRING if loc_error > 0 else "")
         ),
         constants=[
             Constant(name="W", value=grid.width - 1, comment="largest x"),
             Constant(name="H", value=grid.height - 1, comment="largest y"),
             Constant(name="p", type="double", value=p, comment="probability of deviating to each other direction"),
+            *([_loc_error_constant(loc_error)] if loc_error > 0 else []),
             Constant(name="maxStep", value=max_interval),
             Constant(name="c", comment=f"localisation interval in moves, 1..{max_interval}"),
         ],
@@ -165,6 +172,63 @@ def prism_model(
         ],
     )
     return program.render()
+
+
+_ERRING = (
+    "\nWith probability loc_error it puts the estimate on one of the true cell's in-map 4-neighbors"
+    " (equally likely) instead."
+)
+
+# The neighbors a localisation may err to, in this order, and where each puts the estimate.
+_NEIGHBORS = {
+    "east": {"xhat": "x+1", "yhat": "y"},
+    "north": {"xhat": "x", "yhat": "y+1"},
+    "south": {"xhat": "x", "yhat": "y-1"},
+    "west": {"xhat": "x-1", "yhat": "y"},
+}
+
+
+def localise_commands(loc_error: float, *, wide: bool, tall: bool) -> list[Command]:
+    """The ``localise`` commands of the Knowledge module (all guarded by ``step>=c``).
+
+    Exact (``loc_error`` = 0): one command, the estimate := the true position, as always.
+    Erring: the estimate goes to the true cell with probability 1 - loc_error and to each
+    of the true cell's 4-neighbors inside the map with loc_error / (their number): 4
+    inside, 3 on a border, 2 in a corner. The neighbors are written as ``x+1``, ``y-1``...
+    in one command per border situation of the true position (``x=0``, ``x>0 & x<W``,
+    ``x=W`` times the same for y; without the middle one when the map is 2 wide or tall),
+    so that no update is clamped at a border: a clamped ``min(x+1, W)`` would put the east
+    neighbor's share on the true cell. Obstacle cells are neighbors like any other (the
+    controller has a move for them, :func:`~parley_plugins.robot_grid.planner.complete`);
+    a crashed robot's localisation errs too, which changes nothing it does. The guards are
+    disjoint, so exactly one command is enabled, and the action names stay the same.
+    """
+    if loc_error == 0:
+        return [Command(action="localise", guard="step>=c", updates=[_localised({"xhat": "x", "yhat": "y"})])]
+    columns = [("x=0", ["east"]), *([("x>0 & x<W", ["east", "west"])] if wide else []), ("x=W", ["west"])]
+    rows = [("y=0", ["north"]), *([("y>0 & y<H", ["north", "south"])] if tall else []), ("y=H", ["south"])]
+    commands = []
+    for column, east_west in columns:
+        for row, north_south in rows:
+            neighbors = [n for n in _NEIGHBORS if n in east_west or n in north_south]
+            updates = [_localised({"xhat": "x", "yhat": "y"}, "1-loc_error")] if loc_error < 1 else []
+            updates += [_localised(_NEIGHBORS[n], f"loc_error/{len(neighbors)}") for n in neighbors]
+            commands.append(Command(action="localise", guard=f"step>=c & {column} & {row}", updates=updates))
+    return commands
+
+
+def _localised(position: dict[str, str], probability: str | None = None) -> Update:
+    """A localisation's update: the estimate := ``position``, the move counter := 1."""
+    return Update(assignments={**position, "step": "1"}, probability=probability)
+
+
+def _loc_error_constant(loc_error: float) -> Constant:
+    return Constant(
+        name="loc_error",
+        type="double",
+        value=loc_error,
+        comment="probability that a localisation puts the estimate on a neighbor of the true cell",
+    )
 
 
 def _by_column(cells, key=lambda cell: cell[0]) -> dict:

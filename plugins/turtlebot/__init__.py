@@ -7,7 +7,9 @@ robot drifts. A localisation service (energy 5, a move costs 1) sets the estimat
 heading to the true ones. The URC decides, per estimated cell and heading, after how many
 moves to localise (1..5). The motion table comes from the paper's Gazebo samples (option
 ``model``: its ``models/turtlebot/model.prism``) or, by default, from a kinematic Monte
-Carlo of its own. Details and the comparison with the paper: docs/turtlebot.md.
+Carlo of its own. With ``loc_error`` > 0 the localisation errs: it puts the estimated cell
+on a 4-neighbor of the true cell (the heading stays exact). Details and the comparison with
+the paper: docs/turtlebot.md.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from parley_core import (
     hookimpl,
     option,
     positive,
+    probability,
 )
 from parley_core.progress import Reporter
 from parley_plugins.turtlebot import closed_loop, published
@@ -38,7 +41,7 @@ from parley_plugins.turtlebot.generator import prism_model
 from parley_plugins.turtlebot.kinematics import simulate
 from parley_plugins.turtlebot.physics import Physics
 from parley_plugins.turtlebot.sampling import Sampling, cached, counts, motions_of, progress_units
-from parley_plugins.turtlebot.world import World, check, parse_cells, shortest_moves
+from parley_plugins.turtlebot.world import World, check, complete, parse_cells, shortest_moves
 
 PAPER_OBSTACLES = "0:3,0:4,0:5,1:3,2:3,3:3,4:0,4:1,5:1,4:4,4:6,5:6"
 """The cells where the paper's sampled motions crash (and which its model gives no motions)."""
@@ -91,6 +94,12 @@ class TurtlebotOptions:
     horizon: int = option(200, "steps of the energy objective C<=horizon (a move is 3 steps)", positive)
     move_cost: float = option(1.0, "energy of a move", validators.ge(0.0))
     localisation_cost: float = option(5.0, "energy of a localisation", validators.ge(0.0))
+    loc_error: float = option(
+        0.0,
+        "probability that a localisation puts the estimated cell on one of the true cell's 4-neighbors "
+        "inside the area (equally likely) instead of the true cell; the heading is always exact",
+        probability,
+    )
 
 
 SIMULATION_OPTIONS = (
@@ -224,8 +233,14 @@ def _one_cell(text: str, name: str) -> tuple[int, int]:
 
 def build(options: TurtlebotOptions) -> SystemModel:
     world = world_of(options)
+    if options.loc_error > 0:  # an erring localisation may put the estimate on any cell
+        world = attrs.evolve(world, plan=complete(world.plan, world.size, world.target))
     text = prism_model(
-        world, max_period=options.max_period, move_cost=options.move_cost, localisation_cost=options.localisation_cost
+        world,
+        max_period=options.max_period,
+        move_cost=options.move_cost,
+        localisation_cost=options.localisation_cost,
+        loc_error=options.loc_error,
     )
     return SystemModel(
         name="turtlebot",

@@ -15,7 +15,9 @@ per move do:
    once the move counter reaches it, the localisation service reads the simulator's true
    pose into the estimate at ``localisation_cost``: its cell and the nearest of the four
    headings for the DTMC's variables, and for the next turn the yaw, with a Gaussian error
-   of ``heading_noise`` degrees (the start pose's yaw has the same error); so a
+   of ``heading_noise`` degrees (the start pose's yaw has the same error); with
+   ``loc_error`` > 0 it reads the cell wrong as the DTMC's localisation does
+   (:func:`misread`), the heading and yaw as before; so a
    localisation also corrects the heading error that the weak wheel accumulates; a decision at a valuation the URC was not synthesized for (a
    cell the model never reaches) localises, and the episode's notes count it;
 3. a crash (the chassis touched an obstacle) or leaving the area ends the episode, after
@@ -67,6 +69,7 @@ def run_episodes(
     heading_noise: float = 8.0,
     margin: float = 0.3,
     max_moves: int = 1000,
+    loc_error: float = 0.0,
     progress=None,
 ) -> Episodes:
     rng = np.random.default_rng(seed)
@@ -143,8 +146,9 @@ def run_episodes(
                 energy[active[localise]] += localisation_cost
             true_heading = heading_of(moved.poses[:, 2])
             chosen = active[localise]
-            estimate[chosen, 0] = cell_x[localise]
-            estimate[chosen, 1] = cell_y[localise]
+            read = misread(np.column_stack([cell_x[localise], cell_y[localise]]), loc_error, world.size, rng)
+            estimate[chosen, 0] = read[:, 0]
+            estimate[chosen, 1] = read[:, 1]
             estimate[chosen, 2] = true_heading[localise]
             believed[chosen] = moved.poses[localise, 2] + rng.normal(0.0, math.radians(heading_noise), len(chosen))
             step[chosen] = 1
@@ -173,6 +177,26 @@ def run_episodes(
     )
 
 
+def misread(cells: np.ndarray, loc_error: float, size: int, rng: np.random.Generator) -> np.ndarray:
+    """The cells a localisation reports for the true ``cells`` (rows x, y): each, with
+    probability ``loc_error``, one of its 4-neighbors inside the square instead (equally
+    likely), as the DTMC's erring localisation. Draws nothing when ``loc_error`` is 0, so
+    that the episodes are those of an exact localisation. A cell outside the square (the
+    robot left it; the episode ends) has no such neighbor and is kept."""
+    if loc_error == 0 or not len(cells):
+        return cells
+    read = cells.copy()
+    for i in np.flatnonzero(rng.random(len(cells)) < loc_error):
+        x, y = (int(v) for v in cells[i])
+        around = [(x + dx, y + dy) for dx, dy in _AROUND if 0 <= x + dx < size and 0 <= y + dy < size]
+        if around and 0 <= x < size and 0 <= y < size:
+            read[i] = around[rng.integers(len(around))]
+    return read
+
+
+_AROUND = (STEP["east"], STEP["north"], STEP["south"], STEP["west"])
+
+
 def simulate(system: SystemModel, options: Any, urc: URC, episodes: int, seed: int, progress=None) -> Episodes:
     """The closed loop of a turtlebot run (its world, its options' physics and costs)."""
     from parley_plugins.turtlebot import physics_of
@@ -189,6 +213,7 @@ def simulate(system: SystemModel, options: Any, urc: URC, episodes: int, seed: i
         localisation_cost=options.localisation_cost,
         heading_noise=options.heading_noise,
         margin=options.margin,
+        loc_error=options.loc_error,
         progress=progress,
     )
 
