@@ -12,7 +12,7 @@ any policy gets the same values as on those files:
 - ``Knowledge``: the estimate, updated as if every move succeeded, and the move counter
   ``step`` (1 after a localisation); ``localise`` (step >= c) sets the estimate to the true
   position, ``skip`` (step < c) counts on. With ``loc_error`` > 0 the localisation errs
-  (:func:`localise_commands`): one ``localise`` command per border situation of the true
+  (:func:`parley_plugins.localisation.localise_commands`): one ``localise`` command per border situation of the true
   position, each with the exact update and one per in-map neighbor.
 - ``Turn``: move, check, then localise or skip: one robot move is three DTMC steps.
 
@@ -35,6 +35,7 @@ from parley_core.prism.writer import (
     conjunction,
     disjunction,
 )
+from parley_plugins.localisation import localise_commands
 from parley_plugins.robot_grid.grid import Grid
 from parley_plugins.robot_grid.planner import MOVES
 
@@ -66,7 +67,7 @@ def prism_model(
     loc_error: float = 0.0,
 ) -> str:
     """The DTMC text for ``grid`` with the movement controller ``moves``; with ``loc_error``
-    > 0 the localisation errs (:func:`localise_commands`), and ``moves`` must then have a
+    > 0 the localisation errs (:func:`parley_plugins.localisation.localise_commands`), and ``moves`` must then have a
     move for every cell but the target (:func:`~parley_plugins.robot_grid.planner.complete`).
     With ``loc_error`` = 0 the text is exactly the one without the option."""
     unplanned = [cell for cell in grid.cells() if cell not in moves and cell != grid.target]
@@ -124,7 +125,7 @@ def prism_model(
         ],
         commands=[
             *(Command(action=move, updates=[Update(assignments=[_ESTIMATE[move]])]) for move in MOVES),
-            *localise_commands(loc_error, wide=grid.width > 2, tall=grid.height > 2),
+            *localise_commands(loc_error, x_high="W", y_high="H", wide=grid.width > 2, tall=grid.height > 2),
             Command(action="skip", guard="step<c", updates=[Update(assignments={"step": "step+1"})]),
         ],
     )
@@ -178,48 +179,6 @@ _ERRING = (
     "\nWith probability loc_error it puts the estimate on one of the true cell's in-map 4-neighbors"
     " (equally likely) instead."
 )
-
-# The neighbors a localisation may err to, in this order, and where each puts the estimate.
-_NEIGHBORS = {
-    "east": {"xhat": "x+1", "yhat": "y"},
-    "north": {"xhat": "x", "yhat": "y+1"},
-    "south": {"xhat": "x", "yhat": "y-1"},
-    "west": {"xhat": "x-1", "yhat": "y"},
-}
-
-
-def localise_commands(loc_error: float, *, wide: bool, tall: bool) -> list[Command]:
-    """The ``localise`` commands of the Knowledge module (all guarded by ``step>=c``).
-
-    Exact (``loc_error`` = 0): one command, the estimate := the true position, as always.
-    Erring: the estimate goes to the true cell with probability 1 - loc_error and to each
-    of the true cell's 4-neighbors inside the map with loc_error / (their number): 4
-    inside, 3 on a border, 2 in a corner. The neighbors are written as ``x+1``, ``y-1``...
-    in one command per border situation of the true position (``x=0``, ``x>0 & x<W``,
-    ``x=W`` times the same for y; without the middle one when the map is 2 wide or tall),
-    so that no update is clamped at a border: a clamped ``min(x+1, W)`` would put the east
-    neighbor's share on the true cell. Obstacle cells are neighbors like any other (the
-    controller has a move for them, :func:`~parley_plugins.robot_grid.planner.complete`);
-    a crashed robot's localisation errs too, which changes nothing it does. The guards are
-    disjoint, so exactly one command is enabled, and the action names stay the same.
-    """
-    if loc_error == 0:
-        return [Command(action="localise", guard="step>=c", updates=[_localised({"xhat": "x", "yhat": "y"})])]
-    columns = [("x=0", ["east"]), *([("x>0 & x<W", ["east", "west"])] if wide else []), ("x=W", ["west"])]
-    rows = [("y=0", ["north"]), *([("y>0 & y<H", ["north", "south"])] if tall else []), ("y=H", ["south"])]
-    commands = []
-    for column, east_west in columns:
-        for row, north_south in rows:
-            neighbors = [n for n in _NEIGHBORS if n in east_west or n in north_south]
-            updates = [_localised({"xhat": "x", "yhat": "y"}, "1-loc_error")] if loc_error < 1 else []
-            updates += [_localised(_NEIGHBORS[n], f"loc_error/{len(neighbors)}") for n in neighbors]
-            commands.append(Command(action="localise", guard=f"step>=c & {column} & {row}", updates=updates))
-    return commands
-
-
-def _localised(position: dict[str, str], probability: str | None = None) -> Update:
-    """A localisation's update: the estimate := ``position``, the move counter := 1."""
-    return Update(assignments={**position, "step": "1"}, probability=probability)
 
 
 def _loc_error_constant(loc_error: float) -> Constant:

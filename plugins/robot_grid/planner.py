@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import heapq
 import math
-from collections import deque
 
+from parley_plugins import localisation
 from parley_plugins.robot_grid.grid import Grid
 
 MOVES = {"west": (-1, 0), "east": (1, 0), "south": (0, -1), "north": (0, 1)}
@@ -48,35 +48,6 @@ def _direction(dx: int, dy: int) -> str:
 
 
 def complete(grid: Grid, moves: dict[tuple[int, int], str]) -> dict[tuple[int, int], str]:
-    """``moves`` and a move for every other cell but the target: the controller of a robot
-    whose localisation may put its estimate on any cell (``loc_error`` > 0).
-
-    Dijkstra plans no move for obstacles and for free cells cut off from the target, and
-    without localisation errors the estimate of a robot that has not crashed is never
-    there; a wrong localisation can put it on an obstacle next to the robot, and without a
-    move the DTMC would deadlock. Such a cell gets the first move (in the order west, east,
-    south, north) to a neighbor one step nearer (breadth-first, through any cells) to the
-    nearest cell with a planned move or the target, so that following the moves always
-    leads the estimate to the target. The neighbors of a localisation's error stay purely
-    geometric so (erring only to cells with a planned move would make them depend on the
-    plan, and leave a cell whose other neighbors are obstacles, the border or the target
-    without any). The target keeps no move: an estimate there stops the robot, as a drifted
-    robot that believes it has arrived stops today.
-    """
-    known = set(moves) | {grid.target}
-    distance = {cell: 0 for cell in known}
-    queue = deque(sorted(known))
-    while queue:
-        x, y = queue.popleft()
-        for dx, dy in MOVES.values():
-            cell = (x + dx, y + dy)
-            if 0 <= cell[0] < grid.width and 0 <= cell[1] < grid.height and cell not in distance:
-                distance[cell] = distance[(x, y)] + 1
-                queue.append(cell)
-    completed = dict(moves)
-    for (x, y), d in sorted(distance.items()):
-        if (x, y) not in known:
-            completed[(x, y)] = next(
-                name for name, (dx, dy) in MOVES.items() if distance.get((x + dx, y + dy)) == d - 1
-            )
-    return completed
+    """``moves`` and a move for every other cell but the target, for a localisation that may
+    err (:func:`parley_plugins.localisation.complete`; moves tried west, east, south, north)."""
+    return localisation.complete(moves, grid.width, grid.height, grid.target, MOVES)

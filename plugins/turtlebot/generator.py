@@ -16,7 +16,7 @@ same values on both (scripts/check_turtlebot.py compares them with Storm):
   commanded, and the move counter ``step`` (1 after a localisation); ``localise``
   (step >= c) sets the estimate to the truth, ``skip`` (step < c) counts on. With
   ``loc_error`` > 0 the localisation errs in the cell, not in the heading
-  (:func:`localise_commands`): one ``localise`` command per border situation of the true
+  (:func:`parley_plugins.localisation.localise_commands`; the estimated heading stays the true one): one ``localise`` command per border situation of the true
   cell, each with the exact update and one per in-square neighbor.
 - ``Turn``: move, localise or skip, then an idle step: one move is three DTMC steps.
 
@@ -40,6 +40,7 @@ from parley_core.prism.writer import (
     Variable,
     conjunction,
 )
+from parley_plugins.localisation import localise_commands
 from parley_plugins.turtlebot.world import HEADINGS, Outcome, World
 
 _ESTIMATE = {
@@ -54,7 +55,7 @@ def prism_model(
     world: World, *, max_period: int, move_cost: float, localisation_cost: float, loc_error: float = 0.0
 ) -> str:
     """The DTMC text of ``world`` (its motion table and movement controller); with
-    ``loc_error`` > 0 the localisation errs (:func:`localise_commands`), and the world's plan
+    ``loc_error`` > 0 the localisation errs (:func:`parley_plugins.localisation.localise_commands`; the estimated heading stays the true one), and the world's plan
     must then have a move for every cell but the target
     (:func:`~parley_plugins.turtlebot.world.complete`). With ``loc_error`` = 0 the text is
     exactly the one without the option."""
@@ -110,7 +111,14 @@ def prism_model(
         ],
         commands=[
             *(Command(action=move, updates=[Update(assignments=_ESTIMATE[move])]) for move in HEADINGS),
-            *localise_commands(loc_error, wide=world.size > 2),
+            *localise_commands(
+                loc_error,
+                x_high="N",
+                y_high="N",
+                wide=world.size > 2,
+                tall=world.size > 2,
+                also={"directionhat": "direction"},
+            ),
             Command(action="skip", guard="step<c", updates=[Update(assignments={"step": "step+1"})]),
         ],
     )
@@ -164,50 +172,6 @@ _ERRING = (
     "\nWith probability loc_error it puts the estimated cell on one of the true cell's in-square 4-neighbors"
     " (equally likely) instead; the estimated heading is always the true one."
 )
-
-# The neighbors a localisation may err to, in this order, and where each puts the estimate.
-_NEIGHBORS = {
-    "east": {"xhat": "x+1", "yhat": "y"},
-    "north": {"xhat": "x", "yhat": "y+1"},
-    "south": {"xhat": "x", "yhat": "y-1"},
-    "west": {"xhat": "x-1", "yhat": "y"},
-}
-
-
-def localise_commands(loc_error: float, *, wide: bool) -> list[Command]:
-    """The ``localise`` commands of the Knowledge module (all guarded by ``step>=c``).
-
-    Exact (``loc_error`` = 0): one command, the estimate := the truth, as always. Erring:
-    the estimated cell goes to the true cell with probability 1 - loc_error and to each of
-    the true cell's 4-neighbors inside the square with loc_error / (their number): 4
-    inside, 3 on a border, 2 in a corner; the estimated heading is the true one either way
-    (the localisation reads the pose, and only its cell is wrong). The neighbors are
-    written as ``x+1``, ``y-1``... in one command per border situation of the true cell
-    (``x=0``, ``x>0 & x<N``, ``x=N`` times the same for y; without the middle one in a 2x2
-    square), so that no update is clamped at a border: a clamped ``min(x+1, N)`` would put
-    the east neighbor's share on the true cell. Obstacle cells are neighbors like any
-    other (the controller has a move for them, :func:`~parley_plugins.turtlebot.world.complete`);
-    a crashed robot's localisation errs too, which changes nothing it does. The guards are
-    disjoint, so exactly one command is enabled, and the action names stay the same.
-    """
-    if loc_error == 0:
-        return [Command(action="localise", guard="step>=c", updates=[_localised({"xhat": "x", "yhat": "y"})])]
-    columns = [("x=0", ["east"]), *([("x>0 & x<N", ["east", "west"])] if wide else []), ("x=N", ["west"])]
-    rows = [("y=0", ["north"]), *([("y>0 & y<N", ["north", "south"])] if wide else []), ("y=N", ["south"])]
-    commands = []
-    for column, east_west in columns:
-        for row, north_south in rows:
-            neighbors = [n for n in _NEIGHBORS if n in east_west or n in north_south]
-            updates = [_localised({"xhat": "x", "yhat": "y"}, "1-loc_error")] if loc_error < 1 else []
-            updates += [_localised(_NEIGHBORS[n], f"loc_error/{len(neighbors)}") for n in neighbors]
-            commands.append(Command(action="localise", guard=f"step>=c & {column} & {row}", updates=updates))
-    return commands
-
-
-def _localised(cell: dict[str, str], probability: str | None = None) -> Update:
-    """A localisation's update: the estimated cell := ``cell``, the estimated heading := the
-    true one, the move counter := 1."""
-    return Update(assignments={**cell, "directionhat": "direction", "step": "1"}, probability=probability)
 
 
 def _loc_error_constant(loc_error: float) -> Constant:

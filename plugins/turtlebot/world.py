@@ -17,6 +17,7 @@ import numpy as np
 from attrs import field, frozen
 
 from parley_core.errors import OptionError
+from parley_plugins import localisation
 
 HEADINGS = ("north", "east", "south", "west")
 """Heading names by number, and the move commands' names."""
@@ -109,35 +110,10 @@ def shortest_moves(size: int, obstacles: frozenset[Cell], target: Cell) -> dict[
 
 
 def complete(plan: Mapping[Cell, str], size: int, target: Cell) -> dict[Cell, str]:
-    """``plan`` and a move for every other cell of the square but the target: the controller
-    of a robot whose localisation may put its estimate on any cell (``loc_error`` > 0).
-
-    The plan has no move for obstacles and for cells cut off from the target, and without
-    localisation errors the estimate of a robot that has neither crashed nor left is never
-    there; a wrong localisation can put it on an obstacle next to the robot, and without a
-    move the DTMC would deadlock. Such a cell gets the first move (in the order north,
-    east, south, west) to a neighbor one step nearer (breadth-first, through any cells) to
-    the nearest cell with a planned move or the target, so that following the moves always
-    leads the estimate to the target; the neighbors of a localisation's error stay purely
-    geometric so (as in robot_grid's ``planner.complete``). The target keeps no move: an
-    estimate there stops the robot, as a drifted robot that believes it has arrived stops
-    today.
-    """
-    known = set(plan) | {target}
-    distance = {cell: 0 for cell in known}
-    queue = deque(sorted(known))
-    while queue:
-        x, y = queue.popleft()
-        for dx, dy in STEP.values():
-            cell = (x + dx, y + dy)
-            if 0 <= cell[0] < size and 0 <= cell[1] < size and cell not in distance:
-                distance[cell] = distance[(x, y)] + 1
-                queue.append(cell)
-    completed = dict(plan)
-    for (x, y), d in sorted(distance.items()):
-        if (x, y) not in known:
-            completed[(x, y)] = next(m for m in HEADINGS if distance.get((x + STEP[m][0], y + STEP[m][1])) == d - 1)
-    return completed
+    """``plan`` and a move for every other cell of the square but the target, for a
+    localisation that may err (:func:`parley_plugins.localisation.complete`; moves tried in
+    the order of ``HEADINGS``)."""
+    return localisation.complete(plan, size, size, target, {m: STEP[m] for m in HEADINGS})
 
 
 def parse_cells(text: str, what: str) -> frozenset[Cell]:
