@@ -23,7 +23,6 @@ scan_fp side by side) and docs/img/tas-imperfect-probe.png.
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 import matplotlib
@@ -31,10 +30,8 @@ import numpy as np
 from attrs import frozen
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from sweeps import Point, common_reference, sweep
 
-from parley_core import metrics
-from parley_core.pipeline import RunResult, prepare, run
-from parley_core.plugins import load_registry
 from parley_core.search import SearchSettings
 
 RATES = (0.0, 0.05, 0.1, 0.2, 0.3)
@@ -58,45 +55,6 @@ SERIES = (
     Series(case="tas", option="probe_error", image="tas-imperfect-probe.png", zoom=(0.0312, 0.0362)),
 )
 QUICK = {"web_ids": {"rounds": "6"}, "tas": {"rounds": "6", "max_interval": "3"}}
-
-
-@frozen(kw_only=True)
-class Point:
-    """One run of a series: its rate and what the run gave."""
-
-    rate: float
-    result: RunResult
-    seconds: float
-
-    @property
-    def front(self) -> np.ndarray:
-        return np.array(self.result.front.values)
-
-    @property
-    def baseline(self) -> np.ndarray:
-        return np.array(self.result.baseline.values)
-
-    def hypervolume(self, reference) -> float:
-        directions = [o.direction for o in self.result.family.objectives]
-        return metrics.hypervolume(self.front, directions, reference)
-
-
-def sweep(series: Series, settings: SearchSettings, quick: bool) -> list[Point]:
-    """The default run of ``series.case`` at each rate of RATES."""
-    case = load_registry().get(series.case)
-    points = []
-    for rate in RATES:
-        values = {**(QUICK[series.case] if quick else {}), series.option: repr(rate)}
-        start = time.perf_counter()
-        result = run(prepare(case, case.options_from(values)), settings, workers=2, bound="none")
-        points.append(Point(rate=rate, result=result, seconds=time.perf_counter() - start))
-    return points
-
-
-def common_reference(points: list[Point]) -> np.ndarray:
-    """One reference point for the whole series, chosen as a run chooses its own."""
-    objectives = points[0].result.family.objectives
-    return metrics.reference_point(objectives, *(p.front for p in points), *(p.baseline for p in points))
 
 
 def table(series: Series, points: list[Point]) -> list[str]:
@@ -172,7 +130,7 @@ def main() -> None:
     settings = SearchSettings(population=100, generations=5 if args.quick else 40, seed=1)
     images: dict[str, list[tuple[Series, list[Point]]]] = {}
     for series in SERIES:
-        points = sweep(series, settings, args.quick)
+        points = sweep(series.case, series.option, RATES, settings, QUICK[series.case] if args.quick else {})
         print("\n".join(table(series, points)), end="\n\n", flush=True)
         images.setdefault(series.image, []).append((series, points))
     if args.quick:

@@ -23,66 +23,19 @@ For robot_grid it draws the fronts overlaid in docs/img/robot_grid-loc-error.png
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 import matplotlib
 import numpy as np
-from attrs import frozen
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from sweeps import Point, common_reference, sweep
 
-from parley_core import metrics
-from parley_core.pipeline import RunResult, prepare, run
-from parley_core.plugins import load_registry
 from parley_core.search import SearchSettings
 
 RATES = (0.0, 0.05, 0.1, 0.2)
 IMAGE = Path(__file__).resolve().parents[1] / "docs" / "img" / "robot_grid-loc-error.png"
 QUICK = {"robot_grid": {"size": "5", "seed": "1"}, "turtlebot": {"samples": "100"}}
-
-
-@frozen(kw_only=True)
-class Point:
-    """One run: its ``loc_error`` and what the run gave."""
-
-    rate: float
-    result: RunResult
-    seconds: float
-
-    @property
-    def front(self) -> np.ndarray:
-        return np.array(self.result.front.values)
-
-    @property
-    def baseline(self) -> np.ndarray:
-        return np.array(self.result.baseline.values)
-
-    @property
-    def knee(self) -> np.ndarray:
-        return self.front[self.result.selected]
-
-    def hypervolume(self, reference) -> float:
-        directions = [o.direction for o in self.result.family.objectives]
-        return metrics.hypervolume(self.front, directions, reference)
-
-
-def sweep(name: str, settings: SearchSettings, quick: bool) -> list[Point]:
-    """The default run of case study ``name`` at each rate of RATES."""
-    case = load_registry().get(name)
-    points = []
-    for rate in RATES:
-        values = {**(QUICK[name] if quick else {}), "loc_error": repr(rate)}
-        start = time.perf_counter()
-        result = run(prepare(case, case.options_from(values)), settings, workers=2, bound="none")
-        points.append(Point(rate=rate, result=result, seconds=time.perf_counter() - start))
-    return points
-
-
-def common_reference(points: list[Point]) -> np.ndarray:
-    """One reference point for all rows, chosen as a run chooses its own."""
-    objectives = points[0].result.family.objectives
-    return metrics.reference_point(objectives, *(p.front for p in points), *(p.baseline for p in points))
 
 
 def table(name: str, points: list[Point]) -> list[str]:
@@ -138,7 +91,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="small models and 5 generations (a smoke test)")
     args = parser.parse_args()
     settings = SearchSettings(population=100, generations=5 if args.quick else 40, seed=1)
-    points = sweep(args.case, settings, args.quick)
+    points = sweep(args.case, "loc_error", RATES, settings, QUICK[args.case] if args.quick else {})
     print("\n".join(table(args.case, points)), flush=True)
     if args.case == "robot_grid" and not args.quick:  # the figure in docs/ shows the full runs
         print(f"wrote {draw(points, IMAGE)}")

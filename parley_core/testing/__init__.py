@@ -3,6 +3,8 @@ conformance suite.
 
 - :func:`storm_values` checks PRISM text with plain stormpy calls (nothing of parley's
   evaluators), so a test can compare parley's values with Storm's on the same text.
+- :func:`chain_values` checks a DTMC a test builds state by state (exact rationals), to
+  compare a plugin's generated model with an independent one.
 - :func:`case_study`, :func:`family` and :func:`values` build a case study's family and
   evaluate policies on it, the way a run does.
 - :class:`~parley_core.testing.suite.ConformanceSuite` (import it from
@@ -112,6 +114,61 @@ def values(
         engine.close()
 
 
+def chain_values(
+    start,
+    commands,
+    labels: Mapping[str, object],
+    reward: str,
+    formulas: Sequence[str],
+) -> list[float]:
+    """Storm's values at ``start`` of a DTMC given by its semantics: ``commands(state)`` lists
+    the state's enabled commands as ``([(probability, successor)], reward)`` (probabilities
+    as ``fractions.Fraction``; several commands are mixed uniformly, as Storm builds a DTMC
+    whose commands overlap, and a state without any needs a self-loop command);
+    ``labels`` maps a label to a predicate of states; ``reward`` names the reward structure
+    the formulas use. Built in exact arithmetic with stormpy's sparse builder: no PRISM."""
+    from fractions import Fraction
+
+    import stormpy
+
+    index, order, rows = {start: 0}, [start], []
+    for state in order:
+        found = commands(state)
+        row: dict[int, Fraction] = {}
+        for distribution, _ in found:
+            for q, successor in distribution:
+                if q == 0:
+                    continue
+                if successor not in index:
+                    index[successor] = len(order)
+                    order.append(successor)
+                row[index[successor]] = row.get(index[successor], Fraction(0)) + Fraction(q) / len(found)
+        rows.append((row, sum(Fraction(r) for _, r in found) / len(found)))
+    builder = stormpy.datastructures.SparseMatrixBuilder[stormpy.Rational](len(order), len(order))
+    for i, (row, _) in enumerate(rows):
+        for j in sorted(row):
+            builder.add_next_value(i, j, stormpy.Rational(str(row[j])))
+    labeling = stormpy.models.StateLabeling(len(order))
+    labeling.add_label("init")
+    labeling.add_label_to_state("init", 0)
+    for label, holds in labels.items():
+        labeling.add_label(label)
+        for i, state in enumerate(order):
+            if holds(state):  # type: ignore[operator]
+                labeling.add_label_to_state(label, i)
+    rewards = stormpy.models.SparseRewardModel[stormpy.Rational](
+        optional_state_action_reward_vector=[stormpy.Rational(str(r)) for _, r in rows]
+    )
+    components = stormpy.models.SparseModelComponents[stormpy.Rational](
+        transition_matrix=builder.build(), state_labeling=labeling, reward_models={reward: rewards}
+    )
+    model = stormpy.models.SparseDtmc[stormpy.Rational](components)
+    return [
+        float(stormpy.model_checking(model, prop).get_value(model.initial_states[0]))
+        for prop in stormpy.parse_properties("; ".join(formulas))
+    ]
+
+
 def left_to_storm(family: Family) -> tuple[str, ...]:
     """The objectives the quotient evaluator cannot solve and has Storm check instead."""
     from parley_core.evaluate.quotient import QuotientEvaluator
@@ -120,4 +177,4 @@ def left_to_storm(family: Family) -> tuple[str, ...]:
         return evaluator.fallback
 
 
-__all__ = ["case_study", "family", "left_to_storm", "storm_values", "values"]
+__all__ = ["case_study", "chain_values", "family", "left_to_storm", "storm_values", "values"]

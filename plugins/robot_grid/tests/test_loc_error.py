@@ -16,7 +16,6 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-import stormpy
 from typer.testing import CliRunner
 
 from parley_core import OptionError, testing
@@ -159,52 +158,17 @@ class Chain:
             found.append(([(Fraction(1), state)], Fraction(0)))
         return found or [([(Fraction(1), state)], Fraction(0))]
 
-    def explore(self):
-        """States in order of discovery, and per state its successor distribution and reward."""
-        start = (0, *self.grid.start, *self.grid.start, 1, False)
-        index, order, rows = {start: 0}, [start], []
-        for state in order:
-            found = self.commands(state)
-            row: dict[int, Fraction] = {}
-            for distribution, _ in found:
-                for q, successor in distribution:
-                    if q == 0:  # loc_error = 1: never the true cell
-                        continue
-                    if successor not in index:
-                        index[successor] = len(order)
-                        order.append(successor)
-                    row[index[successor]] = row.get(index[successor], Fraction(0)) + q / len(found)
-            rows.append((row, sum(reward for _, reward in found) / len(found)))
-        return order, rows
-
-    def storm_model(self):
-        """The chain as a stormpy sparse DTMC over rationals, labelled ``goal``, rewards ``cost``."""
-        order, rows = self.explore()
-        builder = stormpy.datastructures.SparseMatrixBuilder[stormpy.Rational](len(order), len(order))
-        for i, (row, _) in enumerate(rows):
-            for j in sorted(row):
-                builder.add_next_value(i, j, stormpy.Rational(str(row[j])))
-        labeling = stormpy.models.StateLabeling(len(order))
-        for label in ("init", "goal"):
-            labeling.add_label(label)
-        labeling.add_label_to_state("init", 0)
-        for i, (_, x, y, _, _, _, crashed) in enumerate(order):
-            if (x, y) == self.grid.target and not crashed:
-                labeling.add_label_to_state("goal", i)
-        cost = stormpy.models.SparseRewardModel[stormpy.Rational](
-            optional_state_action_reward_vector=[stormpy.Rational(str(reward)) for _, reward in rows]
-        )
-        components = stormpy.models.SparseModelComponents[stormpy.Rational](
-            transition_matrix=builder.build(), state_labeling=labeling, reward_models={"cost": cost}
-        )
-        return stormpy.models.SparseDtmc[stormpy.Rational](components)
-
     def values(self, horizon):
-        model = self.storm_model()
-        return [
-            float(stormpy.model_checking(model, prop).get_value(model.initial_states[0]))
-            for prop in stormpy.parse_properties(f'P=? [F "goal"]; R{{"cost"}}=? [C<={horizon}]')
-        ]
+        """Storm's success and cost of the chain (no PRISM: :func:`parley_core.testing.chain_values`)."""
+        start = (0, *self.grid.start, *self.grid.start, 1, False)
+        target = self.grid.target
+        return testing.chain_values(
+            start,
+            self.commands,
+            {"goal": lambda state: (state[1], state[2]) == target and not state[6]},
+            "cost",
+            ['P=? [F "goal"]', f'R{{"cost"}}=? [C<={horizon}]'],
+        )
 
 
 @pytest.mark.parametrize(("interval", "p", "loc_error"), [(1, "0.05", "0.2"), (2, "0.02", "0.1"), (3, "0.05", "1")])
