@@ -21,6 +21,14 @@ from parley_core.urc import URC
 from parley_plugins.robot_grid.events import SLIP, wrong_probability
 
 QUICK = {"size": "5", "seed": "1", "max_interval": "4", "horizon": "45"}
+CLI_QUICK = [f"--set={k}={v}" for k, v in QUICK.items()] + [
+    "--workers",
+    "1",
+    "--generations",
+    "2",
+    "--population",
+    "10",
+]
 
 
 def _urc(family, values, name: str) -> URC:
@@ -159,14 +167,7 @@ def test_an_adaptive_controller_needs_an_event_model(robot_family):
 
 def test_cli_adapt_and_simulate_with_drift(tmp_path):
     runner = CliRunner()
-    quick = [f"--set={k}={v}" for k, v in QUICK.items()] + [
-        "--workers",
-        "1",
-        "--generations",
-        "2",
-        "--population",
-        "10",
-    ]
+    quick = CLI_QUICK
     for p in ("0.01", "0.05"):
         result = runner.invoke(
             app, ["run", "robot_grid", *quick, f"--set=p={p}", "--bound", "none", "--out", str(tmp_path / p)]
@@ -229,14 +230,7 @@ def test_a_warm_start_puts_the_earlier_front_in_the_first_population(robot_famil
 
 def test_cli_warm_start_needs_a_run_of_the_same_family(tmp_path):
     runner = CliRunner()
-    quick = [f"--set={k}={v}" for k, v in QUICK.items()] + [
-        "--workers",
-        "1",
-        "--generations",
-        "2",
-        "--population",
-        "10",
-    ]
+    quick = CLI_QUICK
     first = tmp_path / "first"
     assert runner.invoke(app, ["run", "robot_grid", *quick, "--bound", "none", "--out", str(first)]).exit_code == 0
     result = runner.invoke(
