@@ -37,8 +37,7 @@ import numpy as np
 from attrs import field, frozen, validators
 
 from parley_core.errors import ObservationError, ParleyError, PolicyError
-from parley_core.files import read_text
-from parley_core.urc import URC
+from parley_core.urc import URC, read_document
 
 FORMAT = "parley-adaptive-urc/1"
 
@@ -83,7 +82,8 @@ class Calibration:
     """Per parameter value, policy and context, the probability of outcome 1 as the model
     predicts it: ``(ones + 1) / (trials + 2)`` over ``missions`` simulated missions of the
     policy's DTMC at the value (a context never seen there gets the policy's rate over all
-    contexts)."""
+    contexts; an event whose context is not in the table takes the next larger one's, or
+    the largest's)."""
 
     contexts: tuple[int, ...] = field(converter=lambda v: tuple(int(x) for x in v))
     rates: np.ndarray = field(converter=_rates, eq=False)
@@ -221,12 +221,12 @@ class AdaptiveController:
     @classmethod
     def load(cls, path: Path | str) -> AdaptiveController:
         path = Path(path)
-        text = read_text(path, "controller file", "give a file written by `parley adapt`", PolicyError)
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise PolicyError(f"controller file {path} is not JSON ({exc.msg}, line {exc.lineno})") from None
-        if not isinstance(data, dict) or data.get("format") != FORMAT:
+        return cls.from_document(read_document(path, "give a file written by `parley adapt`"), path)
+
+    @classmethod
+    def from_document(cls, data: Mapping[str, Any], path: Path) -> AdaptiveController:
+        """The adaptive controller of a controller file's document, or PolicyError."""
+        if data.get("format") != FORMAT:
             raise PolicyError(
                 f"controller file {path} is not an adaptive controller ({FORMAT}); write it with `parley adapt`"
             )
@@ -243,12 +243,13 @@ class AdaptiveController:
             raise PolicyError(f"controller file {path} is malformed ({exc}); write it with `parley adapt`") from None
 
 
-def is_adaptive(path: Path) -> bool:
-    """Whether a controller file holds an adaptive controller (else a plain one)."""
-    try:
-        return json.loads(path.read_text()).get("format") == FORMAT
-    except (OSError, ValueError, AttributeError):
-        return False
+def load_controller(path: Path) -> URC | AdaptiveController:
+    """A plain controller (``parley select``) or an adaptive one (``parley adapt``), by the
+    file's format."""
+    data = read_document(path, "give a file written by `parley select` or `parley adapt`")
+    if data.get("format") == FORMAT:
+        return AdaptiveController.from_document(data, path)
+    return URC.from_document(data, path)
 
 
 class AdaptiveURC:

@@ -99,6 +99,8 @@ class Series:
     means: dict[str, np.ndarray] = field(eq=False)
     lows: dict[str, np.ndarray] = field(eq=False)
     highs: dict[str, np.ndarray] = field(eq=False)
+    squares: dict[str, np.ndarray] = field(eq=False)
+    """Per objective and mission, the mean of the squared outcomes (for a phase's interval)."""
     in_force: np.ndarray = field(eq=False)
     """[missions, policies]: systems per policy of the controller."""
     policies: tuple[str, ...]
@@ -106,7 +108,7 @@ class Series:
     checked: dict[tuple[str, float], tuple[float, ...]] = field(eq=False)
     """Storm's values of (policy, parameter value)."""
     cut: int = 0
-    """Episodes stopped at max_steps before reaching a sink."""
+    """Episodes cut at max_steps before reaching an unbounded reach objective or a sink."""
 
 
 @frozen(kw_only=True)
@@ -123,16 +125,17 @@ class DriftResult:
     series: tuple[Series, ...]
 
     def phase(self, series: Series, objective: str, first: int, last: int) -> tuple[float, float, float]:
-        """The mean of an objective over missions ``first..last-1`` and all systems, with its 99 % interval."""
+        """The mean of an objective over missions ``first..last-1`` and all systems, with its
+        99 % interval (as if the missions were independent: an adaptive controller's are not
+        quite, its estimator carries over)."""
         mean = float(series.means[objective][first:last].mean())
         n = self.episodes * (last - first)
         kind = self.kinds[self.objectives.index(objective)]
         if kind == "probability":
             low, high = wilson(round(mean * n), n)
             return mean, low, high
-        spread = (series.highs[objective][first:last] - series.means[objective][first:last]) / Z99
-        deviation = float(np.sqrt(np.mean(spread**2) * self.episodes))
-        half = Z99 * deviation / math.sqrt(n)
+        variance = max(0.0, float(series.squares[objective][first:last].mean()) - mean * mean) * n / max(1, n - 1)
+        half = Z99 * math.sqrt(variance / n)
         return mean, mean - half, mean + half
 
 
@@ -199,6 +202,7 @@ def simulate_drift(
         means = {o: np.empty(missions) for o in objectives}
         lows = {o: np.empty(missions) for o in objectives}
         highs = {o: np.empty(missions) for o in objectives}
+        squares = {o: np.empty(missions) for o in objectives}
         in_force = np.zeros((missions, len(rows)), dtype=np.int64)
         cut = 0
         for m in range(missions):
@@ -218,6 +222,7 @@ def simulate_drift(
             for o, kind in zip(objectives, kinds):
                 column = outcome[o]
                 means[o][m] = column.mean()
+                squares[o][m] = np.mean(column * column)
                 if kind == "probability":
                     lows[o][m], highs[o][m] = wilson(int(column.sum()), episodes)
                 else:
@@ -235,6 +240,7 @@ def simulate_drift(
                 means=means,
                 lows=lows,
                 highs=highs,
+                squares=squares,
                 in_force=in_force,
                 policies=names,
                 checked=checked,

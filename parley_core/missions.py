@@ -50,7 +50,7 @@ class Chain:
 
 def build_chain(family: Family, values: Sequence[int], parameter: str, value: float, variables: Sequence[str]) -> Chain:
     """Storm builds the policy ``values`` of ``family`` with the parameter's constant set to ``value``."""
-    text = override_constants(family.prism, {parameter: repr(value)}, services=list(family.names))
+    text = override_constants(family.prism, {parameter: repr(value)}, services=list(family.names), option="--drift")
     program = prism.parse_program(text, origin="the run's model")
     instance = prism.define_constants(program, dict(zip(family.names, (int(v) for v in values))))
     properties = prism.parse_properties([o.formula for o in family.objectives], instance, origin="objective")
@@ -139,8 +139,9 @@ def run_mission(
     events: EventModel | None,
 ) -> tuple[dict[str, np.ndarray], int]:
     """One mission of ``n`` systems on ``chain``: each objective's outcome per system (1/0 or
-    the reward), and how many were stopped at ``horizon`` without reaching a sink; the
-    events of ``events`` go to ``observer``."""
+    the reward), and how many were cut at ``horizon`` before reaching an unbounded reach
+    objective's states or a sink (counted as not reaching them); the events of ``events``
+    go to ``observer``."""
     state = np.full(n, chain.initial, dtype=np.int64)
     reached = {p[1]: np.zeros(n, dtype=bool) for p in plans if p[0] == "reach"}
     totals = {p[1]: np.zeros(n) for p in plans if p[0] == "reward"}
@@ -172,4 +173,6 @@ def run_mission(
         step += 1
     values: dict[str, Any] = {name: hit.astype(float) for name, hit in reached.items()}
     values.update(totals)
-    return values, int(alive.sum())
+    unbounded = [reached[p[1]] for p in plans if p[0] == "reach" and p[3] is None]
+    cut = alive & ~np.logical_and.reduce(unbounded) if unbounded else np.zeros(n, dtype=bool)
+    return values, int(cut.sum())

@@ -230,8 +230,8 @@ def run(
             baseline = evaluate(family, family.baseline_policies(), archive, reporter, stage="baselines")
         reporter.stage("search", settings.generations)
         with _timed(timings, "search"):
-            rows = np.array([p.values for p in warm], dtype=np.int64).reshape(-1, len(family.decisions))
-            result = search(family, engine, settings, archive=archive, progress=reporter.advance, warm=rows)
+            starts = np.array([p.values for p in warm], dtype=np.int64).reshape(-1, len(family.decisions))
+            result = search(family, engine, settings, archive=archive, progress=reporter.advance, warm=starts)
         if result.interrupted:
             reporter.note(
                 f"search interrupted after {result.generations} generations; writing the front of what was evaluated"
@@ -268,25 +268,22 @@ def run(
     # the baselines too: every value a run reports is Storm's
     base_rows = np.array([p.values for p in baseline.policies], dtype=np.int64).reshape(-1, len(family.decisions))
     rows = np.vstack([base_rows, candidates])
+    searched = np.vstack([np.array(baseline.values).reshape(-1, len(names)), values])
     each = None
     with _timed(timings, "verify"):
         if kind is EvaluatorKind.STORM:
-            verification, checked = by_search(), np.vstack([np.array(baseline.values).reshape(-1, len(names)), values])
+            verification, checked = by_search(), searched
         elif not verify:
-            verification, checked = (
-                not_checked(),
-                np.vstack([np.array(baseline.values).reshape(-1, len(names)), values]),
-            )
+            verification, checked = not_checked(), searched
         else:
-            names_ = [f"baseline {p.name}" for p in baseline.policies] + [None] * len(candidates)
+            labels = [f"baseline {p.name}" for p in baseline.policies] + [None] * len(candidates)
             if scenarios:
                 verification, checked, each = robust.check_scenarios(
-                    scenarios, engine, rows, workers, reporter, names_, len(base_rows), verify_with
+                    scenarios, engine, rows, workers, reporter, labels, len(base_rows), verify_with
                 )
             else:
-                searched = np.vstack([np.array(baseline.values).reshape(-1, len(names)), values])
                 verification, checked = check_with_storm(
-                    family, rows, searched, workers, reporter, names_, len(base_rows), verify_with
+                    family, rows, searched, workers, reporter, labels, len(base_rows), verify_with
                 )
         if scenarios and each is None:
             each = engine.scenario_values(rows)

@@ -229,6 +229,7 @@ def check_scenarios(
 ):
     """Storm's values of ``policies`` in every scenario, checked against the search's; returns
     the combined verification, the worst case [n, objectives] and every scenario's [n, scenarios, objectives]."""
+    from parley_core.errors import EvaluatorDisagreement
     from parley_core.verify import Verification, check_with_storm
 
     searched = engine.scenario_values(policies)
@@ -236,16 +237,12 @@ def check_scenarios(
     parts = []
     for s, model in enumerate(models):
         reporter.note(f"Storm checks scenario {model.label} ({s + 1} of {len(models)})")
-        part, checked[:, s] = check_with_storm(
-            model.family,
-            policies,
-            searched[:, s],
-            workers,
-            reporter,
-            names=[None if n is None else f"{n} in scenario {model.label}" for n in names],
-            baselines=baselines,
-            path=path,
-        )
+        try:
+            part, checked[:, s] = check_with_storm(
+                model.family, policies, searched[:, s], workers, reporter, names, baselines, path
+            )
+        except EvaluatorDisagreement as exc:
+            raise EvaluatorDisagreement(f"in scenario {model.label}: {exc}") from None
         parts.append(part)
     verification = Verification(
         by=parts[0].by,

@@ -72,13 +72,6 @@ class ScenarioSet:
         """Every option some scenario sets, in order of first mention."""
         return tuple(dict.fromkeys(k for s in self.scenarios for k in s.keys))
 
-    def to_json(self) -> list[dict[str, str]]:
-        return [s.values for s in self.scenarios]
-
-    @classmethod
-    def from_json(cls, data: Sequence[Mapping[str, str]]) -> ScenarioSet:
-        return cls([Scenario(dict(item)) for item in data])
-
     @classmethod
     def parse(cls, specs: Sequence[str]) -> ScenarioSet:
         """``["p=0.005,0.01,0.02"]``, a grid ``["p=0.01,0.02", "move_cost=1,2"]`` (four

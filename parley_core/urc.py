@@ -131,15 +131,12 @@ class URC:
     @classmethod
     def load(cls, path: Path | str) -> URC:
         path = Path(path)
-        text = read_text(path, "controller file", "give a file written by `parley select`", PolicyError)
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise PolicyError(
-                f"controller file {path} is not JSON ({exc.msg}, line {exc.lineno}); "
-                "give a file written by `parley select`"
-            ) from None
-        if not isinstance(data, dict) or data.get("format") != FORMAT:
+        return cls.from_document(read_document(path, "give a file written by `parley select`"), path)
+
+    @classmethod
+    def from_document(cls, data: Mapping[str, Any], path: Path) -> URC:
+        """The URC of a controller file's document (:func:`read_document`), or PolicyError."""
+        if data.get("format") != FORMAT:
             raise PolicyError(
                 f"controller file {path} is not a parley controller ({FORMAT}); give a file written by `parley select`"
             )
@@ -147,3 +144,15 @@ class URC:
             return cls.from_json(data, source=str(path))
         except (KeyError, TypeError, ValueError, ParleyError) as exc:
             raise PolicyError(f"controller file {path} is malformed ({exc}); write it with `parley select`") from None
+
+
+def read_document(path: Path, hint: str) -> dict[str, Any]:
+    """A controller file's JSON object, or PolicyError saying what is wrong (``hint``: what to give)."""
+    text = read_text(path, "controller file", hint, PolicyError)
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise PolicyError(f"controller file {path} is not JSON ({exc.msg}, line {exc.lineno}); {hint}") from None
+    if not isinstance(data, dict):
+        raise PolicyError(f"controller file {path} holds no JSON object; {hint}")
+    return data

@@ -225,46 +225,49 @@ def _blank_comments(text: str) -> str:
     return re.sub(r"//[^\n]*", lambda m: " " * len(m.group()), text)
 
 
-def override_constants(text: str, values: Mapping[str, str], services: Sequence[str] = ()) -> str:
+def override_constants(
+    text: str, values: Mapping[str, str], services: Sequence[str] = (), option: str = "--scenarios"
+) -> str:
     """A PRISM text with each named constant declared with the given value: ``const double
-    p = 0.02;`` for ``p=0.02`` (whether the model defines ``p`` or leaves it undefined)."""
+    p = 0.02;`` for ``p=0.02`` (whether the model defines ``p`` or leaves it undefined).
+    ``option`` names the command-line option the values came from, in error messages."""
     bare = _blank_comments(text)
     program = prism.parse_program(text, origin="model")
     declared = {c.name: c for c in program.constants}
     for name, value in values.items():
         if name in services:
-            raise OptionError(f"--scenarios {name}=...: {name} is a decision constant; the URC chooses it")
+            raise OptionError(f"{option} {name}=...: {name} is a decision constant; the URC chooses it")
         if name not in declared:
             names = ", ".join(sorted(n for n in declared if n not in services)) or "none"
-            raise OptionError(f"--scenarios {name}=...: the model declares no constant {name}; its constants: {names}")
+            raise OptionError(f"{option} {name}=...: the model declares no constant {name}; its constants: {names}")
         constant = declared[name]
         kind = "bool" if constant.type.is_boolean else "int" if constant.type.is_integer else "double"
-        checked = _constant_value(name, value, kind)
+        checked = _constant_value(name, value, kind, option)
         match = re.search(_CONSTANT.format(name=re.escape(name)), bare)
         if match is None:
-            raise OptionError(f"--scenarios {name}=...: parley cannot find the declaration of {name} in the model")
+            raise OptionError(f"{option} {name}=...: parley cannot find the declaration of {name} in the model")
         declaration = f"const {kind} {name} = {checked};"
         text = text[: match.start()] + declaration + text[match.end() :]
         bare = bare[: match.start()] + declaration + bare[match.end() :]
     return text
 
 
-def _constant_value(name: str, value: str, kind: str) -> str:
+def _constant_value(name: str, value: str, kind: str, option: str) -> str:
     value = value.strip()
     if kind == "bool":
         if value not in ("true", "false"):
-            raise OptionError(f"--scenarios {name}={value}: {name} is a bool constant; give true or false")
+            raise OptionError(f"{option} {name}={value}: {name} is a bool constant; give true or false")
         return value
     try:
         number = float(value)
     except ValueError:
-        raise OptionError(f"--scenarios {name}={value}: {name} is a {kind} constant; give a number") from None
+        raise OptionError(f"{option} {name}={value}: {name} is a {kind} constant; give a number") from None
     if kind == "int":
         if number != int(number):
-            raise OptionError(f"--scenarios {name}={value}: {name} is an int constant; give an integer")
+            raise OptionError(f"{option} {name}={value}: {name} is an int constant; give an integer")
         return str(int(number))
     if not math.isfinite(number):
-        raise OptionError(f"--scenarios {name}={value}: give a finite number")
+        raise OptionError(f"{option} {name}={value}: give a finite number")
     return repr(number)
 
 

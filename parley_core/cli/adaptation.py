@@ -29,12 +29,11 @@ def simulate_drift_command(
     json_: bool,
 ) -> None:
     from parley_core import rundir
-    from parley_core.adaptive import AdaptiveController, is_adaptive
+    from parley_core.adaptive import load_controller
     from parley_core.cli.common import registry
     from parley_core.cli.console import RichReporter, stderr
     from parley_core.drift import Drift, simulate_drift
     from parley_core.drift_report import plot, to_json
-    from parley_core.urc import URC
     from parley_core.usermodel import family_of_run
 
     drift = Drift.parse(spec)
@@ -44,8 +43,7 @@ def simulate_drift_command(
     family = family_of_run(run)
     controllers = []
     for path in policies:
-        controller = AdaptiveController.load(path) if is_adaptive(path) else URC.load(path)
-        controllers.append((path.stem, controller))
+        controllers.append((path.stem, load_controller(path)))
     if len({name for name, _ in controllers}) != len(controllers):
         raise OptionError("two --policy files have the same name; give each controller its own file name")
     case = registry().case_studies.get(str(run.summary.get("case_study", "")))
