@@ -15,6 +15,7 @@ import numpy as np
 from attrs import field, frozen, validators
 
 from parley_core.errors import ModelError, PolicyError
+from parley_core.tables import Tabular
 
 _IDENTIFIER = validators.matches_re(r"[A-Za-z_][A-Za-z0-9_]*")
 _T = TypeVar("_T")
@@ -357,7 +358,7 @@ class Policy:
 
 
 @frozen(kw_only=True)
-class Valued:
+class Valued(Tabular):
     """Policies with their objective values (in the objectives' own units and directions):
     any evaluated set, such as the baselines or the policies of a file. A value may be
     infinite (the expected cost of a policy that may never reach its goal), never NaN."""

@@ -23,10 +23,11 @@ import numpy as np
 from parley_core import metrics
 from parley_core import policies as policy_files
 from parley_core.errors import OutputError
-from parley_core.model import Direction, Valued
+from parley_core.frontplot import front_figure
+from parley_core.model import Valued
 from parley_core.options import options_as_dict
 from parley_core.pipeline import RunResult
-from parley_core.plotting import figure, save
+from parley_core.plotting import save
 
 
 def check_output(out: Path, force: bool) -> None:
@@ -100,26 +101,6 @@ def optimality(result: RunResult, front_hypervolume: float) -> dict[str, Any] | 
         "seconds": round(bound.seconds, 4),
         **({"search": bound.details} if bound.details else {}),
     }
-
-
-def _staircase(points: np.ndarray, signs: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """The outline of what ``points`` (two objectives; ``signs`` +1 maximised, -1 minimised)
-    dominate up to ``reference``: a closed polygon in the objectives' units."""
-    space = points * signs
-    ref = reference * signs
-    space = space[(space > ref).all(axis=1)]
-    if not len(space):
-        return np.array([reference, reference])
-    space = space[np.argsort(-space[:, 0], kind="stable")]
-    best_y = np.maximum.accumulate(space[:, 1])
-    keep = np.r_[True, best_y[1:] > best_y[:-1]]
-    space = space[keep]
-    corners = [[ref[0], space[-1, 1]]]
-    for k in range(len(space) - 1, -1, -1):
-        corners.append([space[k, 0], space[k, 1]])
-        corners.append([space[k, 0], space[k - 1, 1] if k > 0 else ref[1]])
-    corners.append([ref[0], ref[1]])
-    return np.array(corners) * signs
 
 
 def bound_csv(result: RunResult) -> str:
@@ -241,73 +222,22 @@ def summary(result: RunResult) -> dict[str, Any]:
 
 
 def plot_front(result: RunResult, path: Path) -> None:
-    objectives = result.family.objectives
-    fig, ax = figure(6.4, 4.6)
-    if len(objectives) >= 2:
-        i, j = (1, 0) if objectives[0].direction is Direction.MAX else (0, 1)
-        front = np.array(result.front.values)
-        base = np.array(result.baseline.values)
-        ax.scatter(
-            front[:, i],
-            front[:, j],
-            s=22,
-            facecolors="none",
-            edgecolors="tab:blue",
-            label=f"parley front ({len(front)})",
-        )
-        ax.scatter(base[:, i], base[:, j], marker="x", color="tab:red", s=36, label=f"baseline ({len(base)})")
-        if result.front_scenarios is not None and len(result.scenarios) > 1:
-            # each scenario's values of the front's policies: the worst case is their lower envelope
-            for s, model in enumerate(result.scenarios):
-                each = result.front_scenarios[:, s]
-                ax.scatter(each[:, i], each[:, j], s=5, alpha=0.5, label=f"front in {model.label}", zorder=1)
-        chosen = front[result.selected]
-        ax.scatter(
-            [chosen[i]],
-            [chosen[j]],
-            s=90,
-            color="tab:blue",
-            label=f"selected {result.front.policies[result.selected].name} (knee)",
-        )
-        if result.bound is not None and np.isfinite(result.bound.points).all():
-            # the region the bound leaves open: what it dominates beyond what the front does
-            signs = -np.array([objectives[i].direction.sign, objectives[j].direction.sign])  # +1: maximised
-            bound_points = np.asarray(result.bound.points)[:, [i, j]]
-            ax.scatter(bound_points[:, 0], bound_points[:, 1], s=0)  # the view takes in the bound ...
-            limits = ax.get_xlim(), ax.get_ylim()  # ... but not the reference point the regions reach
-            reference = np.array([result.reference[i], result.reference[j]])
-            for points, color, label in (
-                (np.asarray(result.bound.points)[:, [i, j]], "tab:green", "bound: no policy beyond"),
-                (front[:, [i, j]], "tab:blue", None),
-            ):
-                outline = _staircase(points, signs, reference)
-                ax.fill(outline[:, 0], outline[:, 1], color=color, alpha=0.18, lw=0, label=label, zorder=0)
-            outline = _staircase(bound_points, signs, reference)
-            ax.plot(outline[:-1, 0], outline[:-1, 1], color="tab:green", lw=1.0)
-            ax.set_xlim(*limits[0])
-            ax.set_ylim(*limits[1])
-        for policy, row in zip(result.baseline.policies, base):
-            ax.annotate(
-                policy.name.split("-")[-1],
-                (row[i], row[j]),
-                fontsize=7,
-                color="tab:red",
-                xytext=(3, -9),
-                textcoords="offset points",
-            )
-        ax.set_xlabel(f"{objectives[i].name} ({objectives[i].direction.value})")
-        ax.set_ylabel(f"{objectives[j].name} ({objectives[j].direction.value})")
-    else:  # one objective: the values on a line, the front's best and the baselines
-        base = np.array(result.baseline.values)[:, 0]
-        best = np.array(result.front.values)[:, 0]
-        ax.scatter(base, np.zeros(len(base)), marker="x", color="tab:red", s=36, label=f"baseline ({len(base)})")
-        ax.scatter(best, np.zeros(len(best)), s=90, color="tab:blue", label="parley's best")
-        ax.set_yticks([])
-        ax.set_xlabel(f"{objectives[0].name} ({objectives[0].direction.value})")
     robust = f", worst case of {len(result.scenarios)} scenarios" if len(result.scenarios) > 1 else ""
-    ax.set_title(f"{result.prepared.case.name}: front vs baseline{robust}", fontsize=11)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    scenarios = []
+    if result.front_scenarios is not None and len(result.scenarios) > 1:
+        scenarios = [(m.label, result.front_scenarios[:, s]) for s, m in enumerate(result.scenarios)]
+    fig = front_figure(
+        title=f"{result.prepared.case.name}: front vs baseline{robust}",
+        objectives=result.family.objectives,
+        front=np.array(result.front.values),
+        baseline=np.array(result.baseline.values),
+        baseline_names=[p.name for p in result.baseline.policies],
+        selected=result.selected,
+        selected_name=result.front.policies[result.selected].name,
+        reference=result.reference,
+        bound=None if result.bound is None else np.asarray(result.bound.points),
+        scenarios=scenarios,
+    )
     save(fig, path, dpi=130)
 
 

@@ -4,75 +4,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    SpinnerColumn,
-    TaskID,
-    TextColumn,
-    TimeElapsedColumn,
-)
 from rich.table import Table
 
 from parley_core.casestudy import CaseStudy
 from parley_core.model import Valued
 from parley_core.options import options_as_dict
-
-
-def stderr() -> Console:
-    return Console(stderr=True)
-
-
-def progress_bars(console: Console | None = None, description: str = "{task.description}") -> Progress:
-    """The progress bars of every command: spinner, what, bar, done of total, time (on stderr)."""
-    return Progress(
-        SpinnerColumn(),
-        TextColumn(description),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console or stderr(),
-    )
-
-
-class RichReporter:
-    """Draws one progress bar per pipeline stage on stderr (a :class:`~parley_core.progress.Reporter`)."""
-
-    def __init__(self, console: Console) -> None:
-        self.console = console
-        self.progress = progress_bars(console, "{task.description:<18}")
-        self.task: TaskID | None = None
-
-    def __enter__(self) -> RichReporter:
-        self.progress.start()
-        return self
-
-    def __exit__(self, kind, value, traceback) -> None:
-        if kind is None:
-            self._finish()
-        else:  # an error: leave nothing behind but its message (not even rich's last newline)
-            self.progress.live.transient = True
-            self.console.quiet = True
-        self.progress.stop()
-
-    def _finish(self) -> None:
-        # a stage without a known size is done when the next starts; a sized one shows
-        # how far it got (less than its total if interrupted)
-        if self.task is not None and self.progress.tasks[-1].total is None:
-            self.progress.update(self.task, total=1, completed=1)
-
-    def stage(self, name: str, total: int | None = None) -> None:
-        self._finish()
-        self.task = self.progress.add_task(name, total=total)
-
-    def advance(self, n: int = 1) -> None:
-        if self.task is not None:
-            self.progress.advance(self.task, n)
-
-    def note(self, text: str) -> None:
-        self.progress.console.print(f"[yellow]note:[/] {text}")
+from parley_core.richprogress import RichReporter, progress_bars, stderr  # noqa: F401  (re-exported)
 
 
 def fmt(value: float) -> str:

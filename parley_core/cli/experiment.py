@@ -10,7 +10,7 @@ import typer
 from rich.console import Console
 
 from parley_core.cli.app import experiment_app
-from parley_core.cli.common import case_study, search_settings, user_errors
+from parley_core.cli.common import case_study, user_errors
 from parley_core.cli.console import progress_bars
 from parley_core.cli.options import (
     ALGORITHM,
@@ -74,40 +74,31 @@ def experiment_run(
     ] = None,
 ) -> None:
     """Run a campaign; rerunning the same command resumes it, skipping finished runs."""
-    from parley_core.experiment.campaign import Budget, describe, execute, instances_from, plan
-    from parley_core.experiment.store import Store
+    from parley_core.api.campaigns import experiment
+    from parley_core.options import parse_assignments
 
-    study = case_study(case)
-    limits = search_settings(
+    outcome = experiment(
+        case,
+        store=store,
+        reps=reps,
+        grid=grid or [],
+        instances=instances,
+        instance_option=instance_option,
+        options=parse_assignments(set_ or []),
+        name=name,
+        algorithm=algorithm,
         population=population,
         generations=generations,
         max_evaluations=max_evaluations,
         time_limit=time_limit,
-        seed=first_seed,
-        algorithm=algorithm,
-    )
-    budget = Budget(
-        algorithm=limits.algorithm,
-        population=limits.population,
-        generations=limits.generations,
-        max_evaluations=limits.max_evaluations,
-        time_limit=limits.time_limit,
+        first_seed=first_seed,
         evaluator=evaluator,
         verify=verify,
+        workers=workers,
+        scheduler=scheduler,
     )
-    chosen = instances_from(study, grid or [], instances, instance_option)
-    campaign = name or study.name
-    specs = plan(campaign, study, chosen, set_ or [], reps, budget, first_seed)
-    with Store(store) as results:
-        results.begin_campaign(campaign, study.name, {**describe(budget, set_ or []), "first_seed": first_seed})
-        already = len(results.done(campaign) & {(s.instance, s.repetition) for s in specs})
-        with progress_bars() as progress:
-            task = progress.add_task(f"campaign {campaign}", total=len(specs), completed=already)
-            outcome = execute(
-                specs, results, workers=workers, scheduler=scheduler, progress=lambda n: progress.advance(task, n)
-            )
     Console().print(
-        f"campaign {campaign}: {outcome.planned} runs planned, {outcome.skipped} already stored, "
+        f"campaign {outcome.name}: {outcome.planned} runs planned, {outcome.skipped} already stored, "
         f"{outcome.stored} stored now, {len(outcome.failures)} failed; results in {store}"
     )
     for instance, repetition, message in outcome.failures[:10]:

@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 from typing import Annotated
 
 import typer
 from rich.console import Console
 
+from parley_core.api.commands import search_settings
 from parley_core.cli.app import app
-from parley_core.cli.common import prepare_case, search_settings, user_errors
+from parley_core.cli.common import user_errors
 from parley_core.cli.console import RichReporter, fmt, front_table, stderr
 from parley_core.cli.options import (
     ALGORITHM,
@@ -66,20 +66,21 @@ def run_command(
     warm_start: WarmStartOption = None,
 ) -> None:
     """Synthesize a URC: search for Pareto-optimal policies, verify them with Storm, write a run directory."""
+    from parley_core.api.commands import default_out, prepare_case
+
     settings = search_settings(
         population=population,
         generations=generations,
         max_evaluations=max_evaluations,
         time_limit=time_limit,
         seed=seed,
-        constraint=constraint,
+        constraints=constraint,
         algorithm=algorithm,
     )
-    out = out or Path("runs") / f"{case}-{time.strftime('%Y%m%d-%H%M%S')}"
     _synthesize(
         lambda reporter: prepare_case(case, set_, reporter, scenarios),
         settings,
-        out,
+        out or default_out(case),
         force,
         evaluator,
         workers,
@@ -107,14 +108,12 @@ def exact_command(
     """The whole Pareto front of a case study's family: a search, then branch and bound over the
     decisions' ranges until no sub-family can hold a better policy (or --time-limit: the front
     and bound so far, with the gap); a run directory like `parley run`'s."""
-    settings = search_settings(
-        population=POPULATION, generations=None, max_evaluations=None, time_limit=None, seed=seed, constraint=None
-    )
-    out = out or Path("runs") / f"{case}-exact-{time.strftime('%Y%m%d-%H%M%S')}"
+    from parley_core.api.commands import default_out, prepare_case
+
     _synthesize(
         lambda reporter: prepare_case(case, set_, reporter),
-        settings,
-        out,
+        search_settings(seed=seed),
+        out or default_out(f"{case}-exact"),
         force,
         EvaluatorKind.QUOTIENT.value,
         workers,
@@ -159,19 +158,7 @@ def synthesize_command(
     warm_start: WarmStartOption = None,
 ) -> None:
     """Synthesize a URC for your own PRISM model: the same pipeline and run directory as `parley run`."""
-    from parley_core.pipeline import prepare, prepare_scenarios
-    from parley_core.scenarios import ScenarioSet
-    from parley_core.usermodel import FileOptions, case_study_for, system_from_file
-
-    def read(constants=None):
-        return system_from_file(model, decision, observe or [], props, maximize or [], minimize or [], constants)
-
-    def prepare_with(reporter):
-        reporter.stage("read model")
-        if scenarios is not None:
-            chosen = ScenarioSet.parse(scenarios)
-            return prepare_scenarios(case_study_for(read(), model, rebuild=read), {}, chosen, reporter)
-        return prepare(case_study_for(read(), model), FileOptions(model=str(model)), reporter)
+    from parley_core.api.commands import default_out, synthesis_preparer
 
     settings = search_settings(
         population=population,
@@ -179,10 +166,11 @@ def synthesize_command(
         max_evaluations=max_evaluations,
         time_limit=time_limit,
         seed=seed,
-        constraint=constraint,
+        constraints=constraint,
         algorithm=algorithm,
     )
-    out = out or Path("runs") / f"{model.stem}-{time.strftime('%Y%m%d-%H%M%S')}"
+    prepare_with = synthesis_preparer(model, props, decision, observe or [], maximize or [], minimize or [], scenarios)
+    out = out or default_out(model.stem)
     _synthesize(prepare_with, settings, out, force, evaluator, workers, bound, bound_time, verify_with, warm_start)
 
 
@@ -198,40 +186,30 @@ def _synthesize(
     verify_with: str = "batch",
     warm_start: Path | None = None,
 ) -> None:
-    """Prepare, search, verify, write and print a run (shared by `run` and `synthesize`)."""
-    from parley_core.pipeline import run
-    from parley_core.report import PLOT_ERROR, check_output, summary, write_run
-    from parley_core.verify import TOLERANCE, Verified, VerifyPath
+    """Prepare, search, verify, write and print a run (shared by `run`, `exact` and `synthesize`)."""
+    from parley_core.api.commands import execute
+    from parley_core.report import PLOT_ERROR, summary
+    from parley_core.verify import TOLERANCE, Verified
 
     kind = EvaluatorKind.of(evaluator)
-    path = VerifyPath.of(verify_with)
-    if bound not in ("pareto", "ideal", "refine", "none"):
-        raise OptionError(f"unknown --bound {bound!r}; valid: pareto, ideal, refine, none")
     console = Console()
-    check_output(out, force)
     with RichReporter(stderr()) as reporter:
-        prepared = prepare_with(reporter)
-        warm = []
-        if warm_start is not None:
-            from parley_core.policies import read_policies
-
-            if not (warm_start / "policies.csv").is_file():
-                raise OptionError(f"--warm-start {warm_start}: no policies.csv there; give a run directory")
-            warm = read_policies(warm_start / "policies.csv", prepared.family)
-        result = run(
-            prepared,
+        made = execute(
+            prepare_with,
             settings,
-            evaluator=kind,
-            workers=workers,
+            out,
             reporter=reporter,
+            force=force,
+            evaluator=evaluator,
+            workers=workers,
             bound=bound,
             bound_time=bound_time,
-            verify_with=path,
-            warm=warm,
+            verify_with=verify_with,
+            warm_start=warm_start,
         )
-        reporter.stage("write report")
-        written = write_run(result, out, force=force)
-    if out / PLOT_ERROR in written:
+    result = made.result
+    assert result is not None  # made in this process
+    if (out / PLOT_ERROR).is_file():
         console.print(
             f"[yellow]warning:[/] the policy plot failed; the run is complete without it ({out / PLOT_ERROR} says why)"
         )

@@ -1,0 +1,67 @@
+"""Parley as a library: synthesize uncertainty reduction controllers from Python.
+
+One call per command that makes results, value objects out, nothing printed (progress
+bars on stderr unless ``progress=False``), errors as parley's exception types::
+
+    import parley
+
+    run = parley.run("robot_grid", map="map_10.csv", seed=1)   # writes runs/robot_grid-TIME/
+    run.front.to_pandas()          # the Storm-verified front (pandas: pip install 'parley[notebook]')
+    run.baseline, run.summary, run.optimality
+    run.plot()                     # a matplotlib Figure: front, baseline, bound
+    urc = run.select(["success>=0.8"], prefer="cost").controller()
+    urc.decide({"x": 3, "y": 4})   # the runtime URC
+    parley.load(run.directory) == run
+
+    parley.synthesize("pump.prism", props="pump.pctl", decisions={"c": (1, 8)}, observe=["est"])
+    parley.exact("web_ids", time_limit=60)
+    parley.experiment("robot_grid", store="campaign.sqlite", reps=2, generations=5)
+
+The implementation is :mod:`parley_core` (plugins import it); importing ``parley`` imports
+neither stormpy nor matplotlib, and changes no global state.
+"""
+
+from parley_core import __version__
+from parley_core.api import (
+    Campaign,
+    Optimality,
+    Run,
+    Selection,
+    Summary,
+    exact,
+    experiment,
+    load,
+    run,
+    synthesize,
+)
+from parley_core.constraints import Constraint
+from parley_core.errors import ModelError, OptionError, OutputError, ParleyDefect, ParleyError, PolicyError, SearchError
+from parley_core.model import Front, Objective, Policy, Valued
+from parley_core.urc import URC
+
+__all__ = [
+    "URC",
+    "Campaign",
+    "Constraint",
+    "Front",
+    "ModelError",
+    "Objective",
+    "OptionError",
+    "OutputError",
+    "ParleyDefect",
+    "ParleyError",
+    "Policy",
+    "PolicyError",
+    "Optimality",
+    "Run",
+    "SearchError",
+    "Selection",
+    "Summary",
+    "Valued",
+    "__version__",
+    "exact",
+    "experiment",
+    "load",
+    "run",
+    "synthesize",
+]

@@ -1,0 +1,19 @@
+"""The library API, published as the :mod:`parley` package: one function per command that
+makes results, value objects out. See :mod:`parley` for the tour."""
+
+from parley_core.api.campaigns import Campaign, experiment
+from parley_core.api.commands import exact, run, synthesize
+from parley_core.api.runs import Optimality, Run, Selection, Summary, load
+
+__all__ = [
+    "Campaign",
+    "Optimality",
+    "Run",
+    "Selection",
+    "Summary",
+    "exact",
+    "experiment",
+    "load",
+    "run",
+    "synthesize",
+]
