@@ -243,6 +243,8 @@ def plot_front(result: RunResult, path: Path) -> None:
 
 PLOT_ERROR = "policy-plot-error.txt"
 """Written instead of policy.png when a plugin's ``plot_policy`` raises."""
+REPORT_ERROR = "report-error.txt"
+"""Written instead of report.html when the interactive page cannot be made."""
 
 
 def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path]:
@@ -278,11 +280,26 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path
                     f"the {case.name} plugin's plot_policy failed, so there is no policy.png:\n"
                     + "".join(traceback.format_exception(exc))
                 )
+        _interactive_report(staging)
         _move_into_place(staging, out)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
     return sorted(out.iterdir())
+
+
+def _interactive_report(staging: Path) -> None:
+    """report.html, from the files already written; a failure costs the page, not the run."""
+    from parley_core.interactive import run_page
+
+    try:
+        run_page.write(staging)
+    except Exception as exc:
+        (staging / run_page.REPORT).unlink(missing_ok=True)
+        (staging / REPORT_ERROR).write_text(
+            "the interactive report could not be made, so there is no report.html:\n"
+            + "".join(traceback.format_exception(exc))
+        )
 
 
 def _move_into_place(staging: Path, out: Path) -> None:

@@ -117,6 +117,31 @@ class Selection:
 
 
 @frozen(kw_only=True)
+class Page:
+    """An interactive page of a run; Jupyter shows it inline (an iframe holding the page)."""
+
+    path: Path
+    run: Run = field(eq=False, repr=False)
+    height: int = 860
+
+    def html(self) -> str:
+        """The page (made now from the run directory if it has no report.html)."""
+        if self.path.is_file():
+            return self.path.read_text(encoding="utf-8")
+        from parley_core.interactive.run_page import render
+
+        return render(self.run)
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return (
+            f'<iframe srcdoc="{html.escape(self.html(), quote=True)}" '
+            f'style="width:100%;height:{self.height}px;border:0"></iframe>'
+        )
+
+
+@frozen(kw_only=True)
 class Run:
     """A run directory of ``parley run`` / ``parley synthesize`` / ``parley exact``."""
 
@@ -170,6 +195,11 @@ class Run:
             reference=self.summary.reference,
             bound=np.array(self.optimality.points) if self.optimality else None,
         )
+
+    @property
+    def report(self) -> Page:
+        """The interactive report.html (in Jupyter, shown inline)."""
+        return Page(path=self.directory / "report.html", run=self)
 
     def _repr_html_(self) -> str:
         s = self.summary

@@ -188,7 +188,7 @@ def _synthesize(
 ) -> None:
     """Prepare, search, verify, write and print a run (shared by `run`, `exact` and `synthesize`)."""
     from parley_core.api.commands import execute
-    from parley_core.report import PLOT_ERROR, summary
+    from parley_core.report import PLOT_ERROR, REPORT_ERROR, summary
     from parley_core.verify import TOLERANCE, Verified
 
     kind = EvaluatorKind.of(evaluator)
@@ -209,10 +209,11 @@ def _synthesize(
         )
     result = made.result
     assert result is not None  # made in this process
-    if (out / PLOT_ERROR).is_file():
-        console.print(
-            f"[yellow]warning:[/] the policy plot failed; the run is complete without it ({out / PLOT_ERROR} says why)"
-        )
+    for missing, what in ((PLOT_ERROR, "the policy plot"), (REPORT_ERROR, "report.html")):
+        if (out / missing).is_file():
+            console.print(
+                f"[yellow]warning:[/] {what} failed; the run is complete without it ({out / missing} says why)"
+            )
     info = summary(result)
     family = result.family
     constants = [s.constant for s in family.services]

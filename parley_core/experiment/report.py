@@ -369,4 +369,15 @@ def write_report(
     (out / "table2.csv").write_text(rows_csv(rows, names))
     caption = ", ".join(f"{h} {b:g}" for h, b in zip(header, figure_setting))
     figures = box_plots(rows, figure_setting, caption, out / "gains")
-    return text, [out / "table2.md", out / "table2.csv", *figures]
+    from parley_core.interactive import campaign_page
+
+    page = campaign_page.render(
+        rows,
+        settings,
+        header,
+        title=f"parley campaign {campaign} ({case.name})",
+        description=text.split("\n\n")[1] if "\n\n" in text else "",
+        chosen=figure_setting,
+    )
+    (out / campaign_page.REPORT).write_text(page, encoding="utf-8")
+    return text, [out / "table2.md", out / "table2.csv", *figures, out / campaign_page.REPORT]

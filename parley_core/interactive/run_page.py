@@ -1,0 +1,281 @@
+"""``report.html`` of a run directory: the front against the baseline and the bound, with
+hover, a click that shows the policy, and requirement sliders that filter the front.
+
+Bokeh's standalone documents (:func:`bokeh.embed.file_html` with the inline resources) make
+one self-contained, offline file: the views are linked by shared data sources and small
+CustomJS callbacks, without a server. The page is built from the run directory's files
+(through :func:`parley_core.api.runs.load`), so any run directory, old or new, gets the
+same page.
+
+The policy view: where the URC observes two variables (robot_grid's and turtlebot's
+believed position), a grid over them coloured by each service's decision (cells no
+reachable state consults are blank); for any case study, the decision table.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from parley_core.interactive.scripts import FILTER, SHOW_POLICY
+from parley_core.interactive.stable import stable_ids
+from parley_core.model import Direction
+
+if TYPE_CHECKING:
+    from parley_core.api.runs import Run
+
+REPORT = "report.html"
+
+
+def _axes(run: Run) -> tuple[int, int]:
+    """(x, y) objective indices as ``front.png`` lays them out."""
+    if len(run.objectives) == 1:
+        return 0, 0
+    return (1, 0) if run.objectives[0].direction is Direction.MAX else (0, 1)
+
+
+def _finite(values: np.ndarray) -> list[float | None]:
+    return [float(v) if math.isfinite(v) else None for v in values]
+
+
+def policy_table(run: Run) -> tuple[dict[str, list[Any]], list[int], list[str]]:
+    """The decision table's columns (observation variables, then one per service constant,
+    one row per consulted valuation) and, per decision, its row and constant."""
+    files = run.files
+    constants = [s.constant for s in files.services]
+    rows: dict[tuple[int, ...], int] = {}
+    row_of, constant_of = [], []
+    for _name, constant, valuation in files.decisions:
+        row_of.append(rows.setdefault(valuation, len(rows)))
+        constant_of.append(constant)
+    columns: dict[str, list[Any]] = {name: [v[k] for v in rows] for k, name in enumerate(files.observation)}
+    for constant in constants:
+        columns[constant] = [float("nan")] * len(rows)
+    return columns, row_of, constant_of
+
+
+def render(run: Run) -> str:
+    """The page's HTML (self-contained)."""
+    from bokeh.embed import file_html
+    from bokeh.layouts import column, row
+    from bokeh.models import (
+        BoxAnnotation,
+        ColumnDataSource,
+        CustomJS,
+        DataTable,
+        Div,
+        HoverTool,
+        Slider,
+        TableColumn,
+        TapTool,
+    )
+    from bokeh.plotting import figure
+    from bokeh.resources import INLINE
+
+    objectives = run.objectives
+    names = [o.name for o in objectives]
+    i, j = _axes(run)
+    front = np.array(run.front.values, dtype=float).reshape(-1, len(names))
+    base = np.array(run.baseline.values, dtype=float).reshape(-1, len(names))
+    data: dict[str, list[Any]] = {
+        "policy": [p.name for p in run.front.policies],
+        "x": _finite(front[:, i]),
+        "y": _finite(front[:, j]) if len(names) > 1 else [0.0] * len(front),
+        "alpha": [1.0] * len(front),
+    }
+    for k, name in enumerate(names):
+        data[name] = _finite(front[:, k])
+    source = ColumnDataSource(data, name="front-source")
+    tooltips = [("policy", "@policy")] + [(n, f"@{{{n}}}{{0.[0000]}}") for n in names]
+    title = f"{run.case_study}: {len(front)} Storm-verified policies (hover: values; click: the policy)"
+    plot = figure(
+        width=640,
+        height=460,
+        title=title,
+        tools="pan,wheel_zoom,box_zoom,reset,save",
+        x_axis_label=f"{names[i]} ({objectives[i].direction.value})",
+        y_axis_label=f"{names[j]} ({objectives[j].direction.value})" if len(names) > 1 else "",
+        name="front-plot",
+    )
+    points = plot.scatter(
+        "x",
+        "y",
+        source=source,
+        size=8,
+        fill_alpha="alpha",
+        line_alpha="alpha",
+        color="#1f77b4",
+        name="front-points",
+        legend_label=f"parley front ({len(front)})",
+    )
+    plot.add_tools(HoverTool(renderers=[points], tooltips=tooltips), TapTool(renderers=[points]))
+    if len(base):
+        baseline = ColumnDataSource(
+            {
+                "policy": [p.name for p in run.baseline.policies],
+                "x": _finite(base[:, i]),
+                "y": _finite(base[:, j]) if len(names) > 1 else [0.0] * len(base),
+                **{n: _finite(base[:, k]) for k, n in enumerate(names)},
+            }
+        )
+        marks = plot.scatter(
+            "x",
+            "y",
+            source=baseline,
+            marker="x",
+            size=10,
+            color="#d62728",
+            name="baseline-points",
+            legend_label=f"baseline ({len(base)})",
+        )
+        plot.add_tools(HoverTool(renderers=[marks], tooltips=[("baseline", "@policy")] + tooltips[1:]))
+    if run.optimality is not None and len(names) > 1:
+        bound = np.array(run.optimality.points, dtype=float).reshape(-1, len(names))
+        if len(bound) and np.isfinite(bound).all():
+            from parley_core.frontplot import staircase
+
+            signs = -np.array([objectives[i].direction.sign, objectives[j].direction.sign])
+            reference = np.array([run.summary.reference[i], run.summary.reference[j]])
+            outline = staircase(bound[:, [i, j]], signs, reference)[:-1]
+            plot.line(
+                outline[:, 0],
+                outline[:, 1],
+                color="#2ca02c",
+                line_width=1.5,
+                name="bound-line",
+                legend_label="certified bound: no policy beyond",
+            )
+    plot.legend.location = "bottom_right"
+    plot.legend.click_policy = "hide"
+
+    box = BoxAnnotation(fill_alpha=0.08, fill_color="#ff7f0e", line_color="#ff7f0e", name="requirement-box")
+    plot.add_layout(box)
+    counter = Div(text=f"{len(front)} of {len(front)} policies meet the requirements", name="requirement-count")
+    sliders = []
+    for k, objective in enumerate(objectives):
+        column_values = front[:, k][np.isfinite(front[:, k])]
+        if not len(column_values):
+            continue
+        low, high = float(column_values.min()), float(column_values.max())
+        if high <= low:
+            high = low + (abs(low) or 1.0) * 1e-6
+        start = low if objective.direction is Direction.MAX else high
+        sliders.append(
+            Slider(
+                start=low,
+                end=high,
+                value=start,
+                step=(high - low) / 200,
+                title=f"{objective.name} {'>=' if objective.direction is Direction.MAX else '<='}",
+                name=f"requirement-{objective.name}",
+            )
+        )
+    filter_code = CustomJS(
+        args={
+            "source": source,
+            "sliders": sliders,
+            "keys": [objectives[k].name for k in range(len(objectives)) if front[:, k][np.isfinite(front[:, k])].size],
+            "maximise": [o.direction is Direction.MAX for o in objectives],
+            "names": names,
+            "axes": [names[i], names[j]],
+            "box": box,
+            "counter": counter,
+        },
+        code=FILTER,
+    )
+    for slider in sliders:
+        slider.js_on_change("value", filter_code)
+
+    columns, row_of, constant_of = policy_table(run)
+    knee = run.policy(run.summary.selected)
+    for d, value in enumerate(knee.values):  # the page opens on the knee policy
+        columns[constant_of[d]][row_of[d]] = int(value)
+    table_source = ColumnDataSource(columns, name="policy-table")
+    table = DataTable(
+        source=table_source,
+        columns=[TableColumn(field=c, title=c) for c in columns],
+        width=420,
+        height=300,
+        index_position=None,
+        reorderable=False,
+        name="decision-table",
+    )
+    heading = Div(
+        text=f"<b>policy {knee.name}</b> (the knee; click a policy of the front to see its decisions)",
+        name="policy-heading",
+        width=420,
+    )
+    views: list[Any] = [heading]
+    observation = list(run.files.observation)
+    if len(observation) == 2:
+        from bokeh.models import ColorBar, LinearColorMapper
+        from bokeh.palettes import Viridis256
+
+        for service in run.files.services[:3]:
+            mapper = LinearColorMapper(palette=Viridis256, low=service.low, high=service.high, nan_color="white")
+            grid = figure(
+                width=420,
+                height=380,
+                title=f"{service.name} ({service.constant}) per observation of the URC",
+                x_axis_label=observation[0],
+                y_axis_label=observation[1],
+                tools="hover",
+                tooltips=[(observation[0], f"@{observation[0]}"), (observation[1], f"@{observation[1]}")]
+                + [(service.constant, f"@{service.constant}")],
+                match_aspect=True,
+                name=f"policy-map-{service.constant}",
+            )
+            grid.rect(
+                observation[0],
+                observation[1],
+                0.95,
+                0.95,
+                source=table_source,
+                fill_color={"field": service.constant, "transform": mapper},
+                line_color=None,
+            )
+            grid.y_range.flipped = True  # row 0 on top, as the maps are drawn
+            grid.add_layout(ColorBar(color_mapper=mapper, title=service.constant), "right")
+            views.append(grid)
+    views.append(table)
+    source.selected.js_on_change(
+        "indices",
+        CustomJS(
+            args={
+                "source": source,
+                "table": table_source,
+                "decisions": [list(map(int, p.values)) for p in run.front.policies],
+                "row_of": row_of,
+                "constant_of": constant_of,
+                "heading": heading,
+                "names": names,
+            },
+            code=SHOW_POLICY,
+        ),
+    )
+    summary = run.summary
+    facts = [
+        f"hypervolume {summary.front_hypervolume:.6g} against the baseline's {summary.baseline_hypervolume:.6g}",
+        f"values verified by {summary.verified_by}",
+        f"{summary.evaluations} policies evaluated ({summary.algorithm}, seed {summary.seed})",
+    ]
+    if run.optimality is not None and run.optimality.gap is not None:
+        facts.append(f"gap to the certified bound {100 * run.optimality.gap:.1f} %")
+    header = Div(
+        text=f"<h2>parley: {run.case_study}</h2><p>{'; '.join(facts)}. Knee policy: {summary.selected}.</p>",
+        width=1080,
+    )
+    layout = column(header, row(column(plot, counter, *sliders), column(*views)))
+    return stable_ids(file_html(layout, INLINE, title=f"parley report: {run.case_study}"))
+
+
+def write(directory: Path) -> Path:
+    """Write ``report.html`` into a (complete) run directory; returns its path."""
+    from parley_core.api.runs import load
+
+    path = directory / REPORT
+    path.write_text(render(load(directory)), encoding="utf-8")
+    return path

@@ -1,0 +1,154 @@
+"""report.html in a real headless browser (tests/browser.py): for each case study and for a
+campaign, the page loads from the file with no console error or warning, the front plot
+draws as many points as front.csv has rows, a click on a point shows that policy, and the
+requirement sliders filter the front. A screenshot of each page is kept in test-artefacts/."""
+
+from __future__ import annotations
+
+import csv
+import re
+
+import pytest
+
+import parley
+from tests.browser import ARGS, Page, require_browser
+
+SMALL = {"population": 10, "generations": 2, "bound": "ideal", "progress": False}
+CASES = {
+    "robot_grid": {"size": 4},
+    "turtlebot": {"size": 4, "start": "0:0", "target": "3:3", "obstacles": "1:1", "samples": 3001},
+    "web_ids": {"rounds": 10},
+    "tas": {"rounds": 5},
+}
+
+
+@pytest.fixture(scope="module")
+def browser():
+    sync_playwright, chromium = require_browser()
+    with sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=chromium, args=ARGS)
+        yield launched
+        launched.close()
+
+
+def front_rows(directory) -> list[dict]:
+    with open(directory / "front.csv") as handle:
+        return list(csv.DictReader(handle))
+
+
+def offline(html: str) -> bool:
+    """No script, style or image is fetched from anywhere: everything is inline."""
+    return not re.search(r"<(script|link|img)[^>]+(src|href)=[\"']?(https?:)?//", html)
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_run_report_in_a_browser(case, browser, tmp_path):
+    run = parley.run(case, seed=2, **SMALL, out=tmp_path / case, options=CASES[case])
+    report = run.directory / "report.html"
+    assert report.is_file() and offline(report.read_text())
+    rows = front_rows(run.directory)
+    page = Page(browser, report)
+    assert page.problems == []
+    assert page.data("front-source", "policy") == [r["policy"] for r in rows]
+    assert page.rendered_points("front-plot", "front-points") == len(rows)
+
+    # a click on a policy other than the knee shows it: the heading and its decision table
+    target = next(k for k, r in enumerate(rows) if r["policy"] != run.summary.selected)
+    name = rows[target]["policy"]
+    assert name not in page.text("policy-heading")
+    page.click_point("front-plot", "front-points", target)
+    assert f"policy {name}" in page.text("policy-heading")
+    table = {c: page.data("policy-table", c) for c in [s.constant for s in run.files.services]}
+    policy = run.policy(name)
+    row_of = {}
+    for (_decision, constant, valuation), value in zip(run.files.decisions, policy.values):
+        row_of[(constant, valuation)] = value
+    observed = list(run.files.observation)
+    valuations = list(zip(*(page.data("policy-table", v) for v in observed))) if observed else [()]
+    for (constant, valuation), value in row_of.items():
+        assert table[constant][valuations.index(tuple(valuation))] == value
+
+    # the requirement slider on the first objective fades what misses it
+    objective = run.objectives[0]
+    values = sorted(float(r[objective.name]) for r in rows)
+    middle = values[len(values) // 2]
+    page.page.evaluate(
+        "([name, value]) => { Bokeh.documents[0].get_model_by_name(name).value = value; }",
+        [f"requirement-{objective.name}", middle],
+    )
+    page.page.wait_for_timeout(100)
+    meets = sum(1 for v in values if (v >= middle if objective.direction.value == "max" else v <= middle))
+    assert page.text("requirement-count").startswith(f"{meets} of {len(rows)} ")
+    faded = page.data("front-source", "alpha").count(0.12)
+    assert faded == len(rows) - meets
+    page.screenshot(f"report-{case}.png")
+    assert page.problems == []
+
+
+def test_campaign_report_in_a_browser(browser, tmp_path):
+    from typer.testing import CliRunner
+
+    from parley_core.cli import app
+
+    store = tmp_path / "campaign.sqlite"
+    campaign = parley.experiment(
+        "robot_grid", store=store, grid=["size=4,5"], reps=3, population=10, generations=2, workers=1, progress=False
+    )
+    assert campaign.stored == 6 and not campaign.failures
+    result = CliRunner().invoke(app, ["experiment", "report", "--store", str(store), "--out", str(tmp_path / "report")])
+    assert result.exit_code == 0, result.stderr
+    report = tmp_path / "report" / "report.html"
+    assert offline(report.read_text())
+    page = Page(browser, report)
+    assert page.problems == []
+    settings = page.page.evaluate("() => Bokeh.documents[0].get_model_by_name('setting').options")
+    table2 = page.text("table2")
+    assert table2.count("<tr>") == 1 + len(settings) + 1  # the head, one row per setting, the total
+    first = page.data("boxes-hv", "q2")
+    assert sorted(page.data("boxes-hv", "instance")) == ["size=4", "size=5"]
+    assert page.rendered_points("gains-hv", "gains-hv-boxes") == 2
+    other = next(
+        s for s in settings if s != page.page.evaluate("() => Bokeh.documents[0].get_model_by_name('setting').value")
+    )
+    page.page.select_option("select", other)  # the real widget, as a user changes it
+    page.page.wait_for_timeout(200)
+    assert page.page.evaluate("() => Bokeh.documents[0].get_model_by_name('setting').value") == other
+    # the page now shows that setting's boxes, as the report's own statistics give them
+    from parley_core.experiment.report import analyze
+    from parley_core.experiment.store import Store
+    from parley_core.interactive.campaign_page import boxes
+    from parley_core.plugins import load_registry
+
+    case = load_registry().get("robot_grid")
+    with Store(store) as results:
+        rows = analyze(list(results.runs("robot_grid")), case.requirement_settings)
+    setting = case.requirement_settings[settings.index(other)]
+    expected = boxes(rows, setting, "hv", "baseline_hv")
+    assert page.data("boxes-hv", "q2") == pytest.approx(expected["q2"])
+    assert page.data("boxes-hv", "verdict") == expected["verdict"]
+    assert first == pytest.approx(boxes(rows, case.figure_setting, "hv", "baseline_hv")["q2"])
+    page.screenshot("report-campaign.png")
+    assert page.problems == []
+
+
+def test_stable_ids_renumber_bokeh_ids_but_not_data():
+    from parley_core.interactive.stable import stable_ids
+
+    page = (
+        '<script>var lib = {"id":"p9"};</script>'
+        '<div id="0861057a-4ada-4e2d-9937-cfbfeb2edd67" data-root-id="p1141"></div>'
+        '{"roots":{"p1141":"x"},"root_ids":["p1141"]} {"id":"p1142","data":["p1142","p1141"]} {"id":"p1141"}'
+    )
+    stable = stable_ids(page)
+    assert stable.startswith('<script>var lib = {"id":"p9"};</script>')  # the library is left alone
+    assert 'data-root-id="p1001"' in stable and '"root_ids":["p1001"]' in stable and '{"id":"p1001"}' in stable
+    assert '{"id":"p1002","data":["p1142","p1141"]}' in stable  # data that looks like an id stays
+    assert "00000000-0000-4000-8000-000000000001" in stable
+
+
+def test_a_run_report_shows_inline_in_jupyter(tmp_path):
+    run = parley.run("robot_grid", seed=2, **SMALL, out=tmp_path / "r", options=CASES["robot_grid"])
+    inline = run.report._repr_html_()
+    assert inline.startswith("<iframe srcdoc=") and "front-points" in inline
+    (run.directory / "report.html").unlink()  # an old run directory: the page is made on the fly
+    assert "front-points" in run.report.html()
