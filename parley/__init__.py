@@ -5,19 +5,20 @@ bars on stderr unless ``progress=False``), errors as parley's exception types::
 
     import parley
 
-    run = parley.run("robot_grid", map="map_10.csv", seed=1)   # writes runs/robot_grid-TIME/
+    run = parley.run("robot_grid", map="path/to/map_10.csv", seed=1)   # writes runs/robot_grid-TIME/
     run.front.to_pandas()          # the Storm-verified front (pandas: pip install 'parley[notebook]')
     run.baseline, run.summary, run.optimality
     run.plot()                     # a matplotlib Figure: front, baseline, bound
+    run.report                     # the interactive report.html, inline in Jupyter
     urc = run.select(["success>=0.8"], prefer="cost").controller()
-    urc.decide({"x": 3, "y": 4})   # the runtime URC
+    urc.decide({"xhat": 3, "yhat": 4})   # the runtime URC
     parley.load(run.directory) == run
 
     parley.synthesize("pump.prism", props="pump.pctl", decisions={"c": (1, 8)}, observe=["est"])
     parley.exact("web_ids", time_limit=60)
     parley.experiment("robot_grid", store="campaign.sqlite", reps=2, generations=5)
 
-The implementation is :mod:`parley_core` (plugins import it); importing ``parley`` imports
+The implementation is ``parley_core`` (plugins import it); importing ``parley`` imports
 neither stormpy nor matplotlib, and changes no global state.
 """
 

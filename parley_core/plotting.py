@@ -14,9 +14,21 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 
+class InlineFigure(Figure):
+    """A Figure that Jupyter shows as a PNG by itself (``_repr_png_``), without pyplot or
+    ``%matplotlib inline``: parley changes no backend to be seen in a notebook."""
+
+    def _repr_png_(self) -> bytes:
+        import io
+
+        buffer = io.BytesIO()
+        self.savefig(buffer, format="png", dpi=110, bbox_inches="tight")
+        return buffer.getvalue()
+
+
 def figure(width: float, height: float) -> tuple[Figure, Axes]:
     """A figure of ``width`` x ``height`` inches on an Agg canvas, and its one axes."""
-    fig = Figure(figsize=(width, height))
+    fig = InlineFigure(figsize=(width, height))
     FigureCanvasAgg(fig)
     return fig, fig.add_subplot()
 

@@ -290,10 +290,11 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path
 
 def _interactive_report(staging: Path) -> None:
     """report.html, from the files already written; a failure costs the page, not the run."""
+    from parley_core.api.runs import load
     from parley_core.interactive import run_page
 
     try:
-        run_page.write(staging)
+        (staging / run_page.REPORT).write_text(run_page.render(load(staging)), encoding="utf-8")
     except Exception as exc:
         (staging / run_page.REPORT).unlink(missing_ok=True)
         (staging / REPORT_ERROR).write_text(

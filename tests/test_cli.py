@@ -94,8 +94,10 @@ def test_run_writes_the_run_directory_and_is_reproducible(tmp_path):
         "summary.json",
         "front.png",
         "policy.png",
+        "report.html",
     }
     assert (first / "front.csv").read_text() == (second / "front.csv").read_text()
+    assert (first / "report.html").read_bytes() == (second / "report.html").read_bytes()
     assert (first / "policies.csv").read_text() == (second / "policies.csv").read_text()
     with open(first / "front.csv") as handle:
         header = next(csv.reader(handle))

@@ -375,6 +375,8 @@ def write_report(
         rows,
         settings,
         header,
+        table=[(s, [counts(rows, s, f"{key}_verdict") for key, _ in VERDICTS]) for s in settings],
+        labels=[label for _, label in VERDICTS],
         title=f"parley campaign {campaign} ({case.name})",
         description=text.split("\n\n")[1] if "\n\n" in text else "",
         chosen=figure_setting,

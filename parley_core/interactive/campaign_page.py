@@ -7,15 +7,16 @@ from __future__ import annotations
 
 import html
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from parley_core.interactive.scripts import CHOOSE_SETTING
 from parley_core.interactive.stable import stable_ids
 
-if TYPE_CHECKING:
-    from parley_core.experiment.report import Row, Setting
+Row = Any
+"""A :class:`parley_core.experiment.report.Row` (not imported: that module imports this one)."""
+Setting = tuple[float, ...]
 
 REPORT = "report.html"
 GAINS = (
@@ -47,16 +48,17 @@ def boxes(rows: Sequence[Row], setting: Setting, key: str, base: str) -> dict[st
     return columns
 
 
-def table2_html(rows: Sequence[Row], settings: Sequence[Setting], header: Sequence[str]) -> str:
-    """Table 2 as an HTML table: per setting, better/worse/same per comparison, and the total."""
-    from parley_core.experiment.report import VERDICTS, counts
-
+def table2_html(
+    table: Sequence[tuple[Setting, Sequence[tuple[int, int, int]]]], header: Sequence[str], labels: Sequence[str]
+) -> str:
+    """Table 2 as an HTML table: per setting, better/worse/same per comparison (``labels``),
+    and the total."""
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
-    head += "".join(f"<th>{label} better/worse/same</th>" for _, label in VERDICTS)
+    head += "".join(f"<th>{label} better/worse/same</th>" for label in labels)
     lines = []
-    totals = np.zeros((len(VERDICTS), 3), dtype=int)
-    for setting in settings:
-        found = np.array([counts(rows, setting, f"{key}_verdict") for key, _ in VERDICTS], dtype=int)
+    totals = np.zeros((len(labels), 3), dtype=int)
+    for setting, counted in table:
+        found = np.array(counted, dtype=int)
         totals += found
         cells = "".join(f"<td>{b:g}</td>" for b in setting)
         cells += "".join(f"<td>{'/'.join(map(str, c))}</td>" for c in found)
@@ -76,6 +78,8 @@ def render(
     settings: Sequence[Setting],
     header: Sequence[str],
     *,
+    table: Sequence[tuple[Setting, Sequence[tuple[int, int, int]]]],
+    labels: Sequence[str],
     title: str,
     description: str,
     chosen: Setting,
@@ -86,11 +90,11 @@ def render(
     from bokeh.plotting import figure
     from bokeh.resources import INLINE
 
-    labels = [", ".join(f"{h} {b:g}" for h, b in zip(header, s)) for s in settings]
-    current = labels[list(settings).index(chosen)]
+    names = [", ".join(f"{h} {b:g}" for h, b in zip(header, s)) for s in settings]
+    current = names[list(settings).index(chosen)]
     plots, sources, every = [], {}, {}
     for key, base, label in GAINS:
-        every[key] = {text: boxes(rows, s, key, base) for text, s in zip(labels, settings)}
+        every[key] = {text: boxes(rows, s, key, base) for text, s in zip(names, settings)}
         source = ColumnDataSource(every[key][current], name=f"boxes-{key}")
         sources[key] = source
         instances = sorted({r.instance for r in rows}, key=lambda name: (len(name), name))
@@ -124,7 +128,7 @@ def render(
         )
         plot.xaxis.major_label_orientation = 1.2
         plots.append(plot)
-    select = Select(title="requirement setting", value=current, options=labels, name="setting")
+    select = Select(title="requirement setting", value=current, options=names, name="setting")
     select.js_on_change(
         "value",
         CustomJS(
@@ -133,7 +137,7 @@ def render(
         ),
     )
     header_div = Div(
-        text=f"<h2>{html.escape(title)}</h2><p>{html.escape(description)}</p>" + table2_html(rows, settings, header),
+        text=f"<h2>{html.escape(title)}</h2><p>{html.escape(description)}</p>" + table2_html(table, header, labels),
         width=1000,
         name="table2",
     )

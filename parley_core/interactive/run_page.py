@@ -4,8 +4,8 @@ hover, a click that shows the policy, and requirement sliders that filter the fr
 Bokeh's standalone documents (:func:`bokeh.embed.file_html` with the inline resources) make
 one self-contained, offline file: the views are linked by shared data sources and small
 CustomJS callbacks, without a server. The page is built from the run directory's files
-(through :func:`parley_core.api.runs.load`), so any run directory, old or new, gets the
-same page.
+(a :class:`~parley_core.api.runs.Run`, which :mod:`parley_core.report` loads from the
+directory it has just written), so any run directory, old or new, gets the same page.
 
 The policy view: where the URC observes two variables (robot_grid's and turtlebot's
 believed position), a grid over them coloured by each service's decision (cells no
@@ -15,8 +15,7 @@ reachable state consults are blank); for any case study, the decision table.
 from __future__ import annotations
 
 import math
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -24,8 +23,8 @@ from parley_core.interactive.scripts import FILTER, SHOW_POLICY
 from parley_core.interactive.stable import stable_ids
 from parley_core.model import Direction
 
-if TYPE_CHECKING:
-    from parley_core.api.runs import Run
+Run = Any
+"""A :class:`parley_core.api.runs.Run` (not imported: the API imports this module)."""
 
 REPORT = "report.html"
 
@@ -270,12 +269,3 @@ def render(run: Run) -> str:
     )
     layout = column(header, row(column(plot, counter, *sliders), column(*views)))
     return stable_ids(file_html(layout, INLINE, title=f"parley report: {run.case_study}"))
-
-
-def write(directory: Path) -> Path:
-    """Write ``report.html`` into a (complete) run directory; returns its path."""
-    from parley_core.api.runs import load
-
-    path = directory / REPORT
-    path.write_text(render(load(directory)), encoding="utf-8")
-    return path
