@@ -174,3 +174,18 @@ def test_the_docs_examples_run(tmp_path, monkeypatch, capsys):
     assert (tmp_path / "runs" / "demo" / "controller.json").is_file()
     assert namespace["campaign"].planned == 4 and not namespace["campaign"].failures
     assert namespace["exact"].optimality.method
+
+
+def test_the_readmes_example_runs(tmp_path, monkeypatch):
+    """README's block as written, with a small budget and the run directory in tmp_path."""
+    readme = (DOCS.parent / "README.md").read_text()
+    (block,) = re.findall(r"```python\n(.*?)```", readme, flags=re.S)
+    real = parley.run
+
+    def small(case, **kwargs):
+        return real(case, **{**kwargs, **SMALL, "progress": False, "out": tmp_path / "readme"})
+
+    monkeypatch.setattr(parley, "run", small)
+    namespace: dict = {}
+    exec(compile(block, "README.md", "exec"), namespace)
+    assert namespace["run"].directory == tmp_path / "readme" and "urc" in namespace

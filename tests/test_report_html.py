@@ -152,3 +152,18 @@ def test_a_run_report_shows_inline_in_jupyter(tmp_path):
     assert inline.startswith("<iframe srcdoc=") and "front-points" in inline
     (run.directory / "report.html").unlink()  # an old run directory: the page is made on the fly
     assert "front-points" in run.report.html()
+
+
+def test_parley_report_writes_the_page_again(tmp_path):
+    from typer.testing import CliRunner
+
+    from parley_core.cli import app
+
+    run = parley.run("web_ids", seed=2, **SMALL, out=tmp_path / "w", options=CASES["web_ids"])
+    before = (run.directory / "report.html").read_bytes()
+    (run.directory / "report.html").unlink()
+    result = CliRunner().invoke(app, ["report", str(run.directory)])
+    assert result.exit_code == 0, result.stderr
+    assert (run.directory / "report.html").read_bytes() == before
+    missing = CliRunner().invoke(app, ["report", str(tmp_path / "nothing")])
+    assert missing.exit_code == 2 and "does not exist" in missing.stderr

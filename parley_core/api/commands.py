@@ -131,29 +131,34 @@ def run(
     parameter here (robot_grid's map ``seed``), in ``options``.
     """
     assignments = assignments_of({**(options or {}), **more_options})
-    settings = search_settings(
-        population=population,
-        generations=generations,
-        max_evaluations=max_evaluations,
-        time_limit=time_limit,
-        seed=seed,
-        constraints=constraints,
-        algorithm=algorithm,
+    return _searched(
+        lambda r: prepare_case(case, assignments, r, scenarios),
+        Path(out) if out is not None else default_out(case),
+        progress,
+        dict(
+            seed=seed,
+            population=population,
+            generations=generations,
+            max_evaluations=max_evaluations,
+            time_limit=time_limit,
+            algorithm=algorithm,
+            constraints=constraints,
+        ),
+        force=force,
+        evaluator=evaluator,
+        workers=workers,
+        bound=bound,
+        bound_time=bound_time,
+        verify_with=verify_with,
+        warm_start=Path(warm_start) if warm_start is not None else None,
     )
+
+
+def _searched(prepare_with, out: Path, progress: bool | Reporter, limits: dict[str, Any], **how: Any) -> Run:
+    """A search run (``run``, ``synthesize``): its settings from ``limits``, then :func:`execute`."""
+    settings = search_settings(**limits)
     with reporting(progress) as reporter:
-        return execute(
-            lambda r: prepare_case(case, assignments, r, scenarios),
-            settings,
-            Path(out) if out is not None else default_out(case),
-            reporter=reporter,
-            force=force,
-            evaluator=evaluator,
-            workers=workers,
-            bound=bound,
-            bound_time=bound_time,
-            verify_with=verify_with,
-            warm_start=Path(warm_start) if warm_start is not None else None,
-        )
+        return execute(prepare_with, settings, out, reporter=reporter, **how)
 
 
 def exact(
@@ -215,30 +220,27 @@ def synthesize(
     ``decisions``: ``{"c": (1, 8)}`` (a frequency decision over 1..8), ``{"c": "1..8:threshold"}``
     or the CLI's ``["c=1..8"]``; ``observe``: the variables the URC may read."""
     path = Path(model)
-    prepare_with = synthesis_preparer(path, Path(props), decisions, observe, maximize, minimize, scenarios)
-    settings = search_settings(
-        population=population,
-        generations=generations,
-        max_evaluations=max_evaluations,
-        time_limit=time_limit,
-        seed=seed,
-        constraints=constraints,
-        algorithm=algorithm,
+    return _searched(
+        synthesis_preparer(path, Path(props), decisions, observe, maximize, minimize, scenarios),
+        Path(out) if out is not None else default_out(path.stem),
+        progress,
+        dict(
+            seed=seed,
+            population=population,
+            generations=generations,
+            max_evaluations=max_evaluations,
+            time_limit=time_limit,
+            algorithm=algorithm,
+            constraints=constraints,
+        ),
+        force=force,
+        evaluator=evaluator,
+        workers=workers,
+        bound=bound,
+        bound_time=bound_time,
+        verify_with=verify_with,
+        warm_start=Path(warm_start) if warm_start is not None else None,
     )
-    with reporting(progress) as reporter:
-        return execute(
-            prepare_with,
-            settings,
-            Path(out) if out is not None else default_out(path.stem),
-            reporter=reporter,
-            force=force,
-            evaluator=evaluator,
-            workers=workers,
-            bound=bound,
-            bound_time=bound_time,
-            verify_with=verify_with,
-            warm_start=Path(warm_start) if warm_start is not None else None,
-        )
 
 
 def synthesis_preparer(

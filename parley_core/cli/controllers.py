@@ -227,3 +227,20 @@ def validate_command(
             f"{', ...' if len(outside) > 6 else ''}): the model's abstraction differs from the simulated system there"
         )
     console.print(f"wrote {run_dir / 'validation.json'} and {run_dir / 'validation.png'}")
+
+
+@app.command("report")
+@user_errors
+def report_command(
+    run_dir: Annotated[Path, typer.Argument(help="A run directory of `parley run`, `exact` or `synthesize`.")],
+    out: Annotated[Path | None, typer.Option(help="Page to write (default: RUN_DIR/report.html).")] = None,
+) -> None:
+    """Write the interactive report.html of a run directory (again, or for one written before it existed)."""
+    from parley_core.api.runs import load
+    from parley_core.interactive.run_page import REPORT, render
+
+    target = out or run_dir / REPORT
+    page = render(load(run_dir))
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_text(page, encoding="utf-8")
+    Console().print(f"wrote {target}")

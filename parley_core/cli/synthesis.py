@@ -9,7 +9,6 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from parley_core.api.commands import search_settings
 from parley_core.cli.app import app
 from parley_core.cli.common import user_errors
 from parley_core.cli.console import RichReporter, fmt, front_table, stderr
@@ -66,27 +65,32 @@ def run_command(
     warm_start: WarmStartOption = None,
 ) -> None:
     """Synthesize a URC: search for Pareto-optimal policies, verify them with Storm, write a run directory."""
-    from parley_core.api.commands import default_out, prepare_case
+    from parley_core.api.commands import run
+    from parley_core.options import parse_assignments
 
-    settings = search_settings(
-        population=population,
-        generations=generations,
-        max_evaluations=max_evaluations,
-        time_limit=time_limit,
-        seed=seed,
-        constraints=constraint,
-        algorithm=algorithm,
-    )
+    options = parse_assignments(set_ or [])
     _synthesize(
-        lambda reporter: prepare_case(case, set_, reporter, scenarios),
-        settings,
-        out or default_out(case),
-        force,
-        evaluator,
-        workers,
-        bound,
-        bound_time,
-        verify_with,
+        lambda reporter: run(
+            case,
+            seed=seed,
+            population=population,
+            generations=generations,
+            max_evaluations=max_evaluations,
+            time_limit=time_limit,
+            algorithm=algorithm,
+            constraints=constraint or (),
+            evaluator=evaluator,
+            workers=workers,
+            bound=bound,
+            bound_time=bound_time,
+            verify_with=verify_with,
+            scenarios=scenarios,
+            warm_start=warm_start,
+            out=out,
+            force=force,
+            progress=reporter,
+            options=options,
+        ),
         warm_start,
     )
 
@@ -108,17 +112,21 @@ def exact_command(
     """The whole Pareto front of a case study's family: a search, then branch and bound over the
     decisions' ranges until no sub-family can hold a better policy (or --time-limit: the front
     and bound so far, with the gap); a run directory like `parley run`'s."""
-    from parley_core.api.commands import default_out, prepare_case
+    from parley_core.api.commands import exact
+    from parley_core.options import parse_assignments
 
+    options = parse_assignments(set_ or [])
     _synthesize(
-        lambda reporter: prepare_case(case, set_, reporter),
-        search_settings(seed=seed),
-        out or default_out(f"{case}-exact"),
-        force,
-        EvaluatorKind.QUOTIENT.value,
-        workers,
-        "refine",
-        time_limit,
+        lambda reporter: exact(
+            case,
+            seed=seed,
+            time_limit=time_limit,
+            workers=workers,
+            out=out,
+            force=force,
+            progress=reporter,
+            options=options,
+        )
     )
 
 
@@ -158,55 +166,48 @@ def synthesize_command(
     warm_start: WarmStartOption = None,
 ) -> None:
     """Synthesize a URC for your own PRISM model: the same pipeline and run directory as `parley run`."""
-    from parley_core.api.commands import default_out, synthesis_preparer
+    from parley_core.api.commands import synthesize
 
-    settings = search_settings(
-        population=population,
-        generations=generations,
-        max_evaluations=max_evaluations,
-        time_limit=time_limit,
-        seed=seed,
-        constraints=constraint,
-        algorithm=algorithm,
-    )
-    prepare_with = synthesis_preparer(model, props, decision, observe or [], maximize or [], minimize or [], scenarios)
-    out = out or default_out(model.stem)
-    _synthesize(prepare_with, settings, out, force, evaluator, workers, bound, bound_time, verify_with, warm_start)
-
-
-def _synthesize(
-    prepare_with,
-    settings,
-    out: Path,
-    force: bool,
-    evaluator: str,
-    workers: int | None,
-    bound: str = "pareto",
-    bound_time: float | None = None,
-    verify_with: str = "batch",
-    warm_start: Path | None = None,
-) -> None:
-    """Prepare, search, verify, write and print a run (shared by `run`, `exact` and `synthesize`)."""
-    from parley_core.api.commands import execute
-    from parley_core.report import PLOT_ERROR, REPORT_ERROR, summary
-    from parley_core.verify import TOLERANCE, Verified
-
-    kind = EvaluatorKind.of(evaluator)
-    console = Console()
-    with RichReporter(stderr()) as reporter:
-        made = execute(
-            prepare_with,
-            settings,
-            out,
-            reporter=reporter,
-            force=force,
+    _synthesize(
+        lambda reporter: synthesize(
+            model,
+            props=props,
+            decisions=decision,
+            observe=observe or (),
+            maximize=maximize or (),
+            minimize=minimize or (),
+            seed=seed,
+            population=population,
+            generations=generations,
+            max_evaluations=max_evaluations,
+            time_limit=time_limit,
+            algorithm=algorithm,
+            constraints=constraint or (),
             evaluator=evaluator,
             workers=workers,
             bound=bound,
             bound_time=bound_time,
             verify_with=verify_with,
+            scenarios=scenarios,
             warm_start=warm_start,
-        )
+            out=out,
+            force=force,
+            progress=reporter,
+        ),
+        warm_start,
+    )
+
+
+def _synthesize(make, warm_start: Path | None = None) -> None:
+    """Make a run with ``make(reporter)`` (the API's ``run``, ``exact`` or ``synthesize``)
+    under progress bars, then print it."""
+    from parley_core.report import PLOT_ERROR, REPORT_ERROR, summary
+    from parley_core.verify import TOLERANCE, Verified
+
+    console = Console()
+    with RichReporter(stderr()) as reporter:
+        made = make(reporter)
+    out = made.directory
     result = made.result
     assert result is not None  # made in this process
     for missing, what in ((PLOT_ERROR, "the policy plot"), (REPORT_ERROR, "report.html")):
@@ -279,7 +280,7 @@ def _synthesize(
         where = f" in each of {verification.scenarios} scenarios" if verification.scenarios > 1 else ""
         console.print(
             f"every front policy and baseline re-checked by Storm{where} ({verification.path}, "
-            f"{verification.seconds:.1f} s): largest difference from the {kind.value} "
+            f"{verification.seconds:.1f} s): largest difference from the {result.evaluator.value} "
             f"evaluator {verification.max_difference:.1e} (relative {verification.max_relative_difference:.1e}, "
             f"within the tolerance {TOLERANCE:g})"
         )
