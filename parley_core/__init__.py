@@ -28,6 +28,7 @@ from parley_core.model import (
     Valued,
 )
 from parley_core.options import option, positive, probability
+from parley_core.policymap import PolicyMap
 from parley_core.simulator import Episodes, Simulator
 from parley_core.urc import URC
 
@@ -51,6 +52,7 @@ __all__ = [
     "ParleyError",
     "Policy",
     "PolicyError",
+    "PolicyMap",
     "PolicyTable",
     "Service",
     "Simulator",

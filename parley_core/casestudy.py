@@ -13,6 +13,7 @@ from parley_core.adaptive import EventModel
 from parley_core.errors import OptionError
 from parley_core.model import SystemModel
 from parley_core.options import convert, parse_assignments
+from parley_core.policymap import PolicyMap
 from parley_core.progress import Reporter
 from parley_core.simulator import Simulator
 
@@ -75,6 +76,10 @@ class CaseStudy:
     plot_policy: Callable[[SystemModel, PolicyTable, Path], None] | None = None
     """Optionally draws one policy as a PNG for the run report: ``plot_policy(system, table,
     path)``. A failing plot costs only the plot (the run says why in policy-plot-error.txt)."""
+    policy_map: Callable[[SystemModel], PolicyMap] | None = None
+    """Optionally, the map the interactive report draws a policy on
+    (:class:`parley_core.policymap.PolicyMap`: axes, obstacles, start and target), from the
+    built system; without one, the report's grid shows the first two observation variables."""
     quick: Mapping[str, str] = field(factory=dict, converter=dict)
     """Option values (``--set`` strings) for a small instance that builds and searches in
     seconds; the conformance suite runs every case study with them."""

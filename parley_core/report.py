@@ -280,12 +280,26 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path
                     f"the {case.name} plugin's plot_policy failed, so there is no policy.png:\n"
                     + "".join(traceback.format_exception(exc))
                 )
+        if case.policy_map is not None:
+            _policy_map(case, result, staging)
         _interactive_report(staging)
         _move_into_place(staging, out)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
     return sorted(out.iterdir())
+
+
+def _policy_map(case, result: RunResult, staging: Path) -> None:
+    """map.json, the plugin's map for report.html (a failure costs the map, not the run)."""
+    try:
+        found = case.policy_map(result.prepared.system)
+        (staging / "map.json").write_text(json.dumps(found.to_json(), indent=1) + "\n")
+    except Exception as exc:
+        (staging / REPORT_ERROR).write_text(
+            f"the {case.name} plugin's policy_map failed, so report.html has no map:\n"
+            + "".join(traceback.format_exception(exc))
+        )
 
 
 def _interactive_report(staging: Path) -> None:

@@ -92,6 +92,12 @@ class Page:
             "([name, column]) => Array.from(Bokeh.documents[0].get_model_by_name(name).data[column])", [name, column]
         )
 
+    def renderer_data(self, renderer: str, column: str) -> list:
+        return self.page.evaluate(
+            "([name, column]) => Array.from(Bokeh.documents[0].get_model_by_name(name).data_source.data[column])",
+            [renderer, column],
+        )
+
     def rendered_points(self, plot: str, renderer: str) -> int:
         """How many points the renderer's view drew (screen coordinates computed)."""
         return self.page.evaluate(

@@ -6,6 +6,7 @@ requirement sliders filter the front. A screenshot of each page is kept in test-
 from __future__ import annotations
 
 import csv
+import json
 import re
 
 import pytest
@@ -81,6 +82,23 @@ def test_run_report_in_a_browser(case, browser, tmp_path):
     assert page.text("requirement-count").startswith(f"{meets} of {len(rows)} ")
     faded = page.data("front-source", "alpha").count(0.12)
     assert faded == len(rows) - meets
+    if case in ("robot_grid", "turtlebot"):  # the plugin's map: obstacles and marks where map.json puts them
+        found = json.loads((run.directory / "map.json").read_text())
+        blocked = found["blocked"]
+        if blocked:
+            drawn = zip(page.renderer_data("map-blocked", "x"), page.renderer_data("map-blocked", "y"))
+            assert sorted(map(list, drawn)) == sorted(blocked)
+        assert sorted(page.renderer_data("map-marks", "text")) == ["S", "T"]
+    if case == "turtlebot":  # the heading menu picks the slice of the grid
+        menu = "slice-directionhat"
+        options = page.page.evaluate("(n) => Bokeh.documents[0].get_model_by_name(n).options", menu)
+        headings = page.data("policy-table", "directionhat")
+        for option in options:
+            page.page.evaluate("([n, v]) => { Bokeh.documents[0].get_model_by_name(n).value = v; }", [menu, option])
+            shown = page.page.evaluate(
+                "() => Bokeh.documents[0].get_model_by_name('policy-cells-c').view.filter.booleans"
+            )
+            assert shown == [h == int(option) for h in headings]
     page.screenshot(f"report-{case}.png")
     assert page.problems == []
 

@@ -7,9 +7,9 @@ CustomJS callbacks, without a server. The page is built from the run directory's
 (a :class:`~parley_core.api.runs.Run`, which :mod:`parley_core.report` loads from the
 directory it has just written), so any run directory, old or new, gets the same page.
 
-The policy view: where the URC observes two variables (robot_grid's and turtlebot's
-believed position), a grid over them coloured by each service's decision (cells no
-reachable state consults are blank); for any case study, the decision table.
+The policy view: where the URC observes two variables or more, a grid over two of them
+coloured by each service's decision, on the plugin's map where it gives one
+(:mod:`parley_core.interactive.policy_grid`); for any case study, the decision table.
 """
 
 from __future__ import annotations
@@ -208,37 +208,9 @@ def render(run: Run) -> str:
         width=420,
     )
     views: list[Any] = [heading]
-    observation = list(run.files.observation)
-    if len(observation) == 2:
-        from bokeh.models import ColorBar, LinearColorMapper
-        from bokeh.palettes import Viridis256
+    from parley_core.interactive.policy_grid import grids
 
-        for service in run.files.services[:3]:
-            mapper = LinearColorMapper(palette=Viridis256, low=service.low, high=service.high, nan_color="white")
-            grid = figure(
-                width=420,
-                height=380,
-                title=f"{service.name} ({service.constant}) per observation of the URC",
-                x_axis_label=observation[0],
-                y_axis_label=observation[1],
-                tools="hover",
-                tooltips=[(observation[0], f"@{observation[0]}"), (observation[1], f"@{observation[1]}")]
-                + [(service.constant, f"@{service.constant}")],
-                match_aspect=True,
-                name=f"policy-map-{service.constant}",
-            )
-            grid.rect(
-                observation[0],
-                observation[1],
-                0.95,
-                0.95,
-                source=table_source,
-                fill_color={"field": service.constant, "transform": mapper},
-                line_color=None,
-            )
-            grid.y_range.flipped = True  # row 0 on top, as the maps are drawn
-            grid.add_layout(ColorBar(color_mapper=mapper, title=service.constant), "right")
-            views.append(grid)
+    views += grids(run, table_source, columns)
     views.append(table)
     source.selected.js_on_change(
         "indices",

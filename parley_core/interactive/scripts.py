@@ -48,3 +48,16 @@ for (let k = 0; k < sources.length; k++) {
   sources[k].data = every[k][chosen];
 }
 """
+
+SLICE = """
+// a menu of an observation variable the grid does not show: draw that value's cells
+const data = source.data;
+const n = data[variables[0]].length;
+const wanted = menus.map((menu) => Number(menu.value));
+const booleans = new Array(n);
+for (let r = 0; r < n; r++) {
+  booleans[r] = variables.every((v, k) => data[v][r] === wanted[k]);
+}
+filter.booleans = booleans;
+source.change.emit();
+"""

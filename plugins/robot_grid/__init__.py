@@ -19,6 +19,7 @@ from parley_core import (
     DecisionKind,
     Direction,
     Objective,
+    PolicyMap,
     PolicyTable,
     Service,
     SystemModel,
@@ -110,12 +111,25 @@ def plot_policy(system: SystemModel, table: PolicyTable, path: Path) -> None:
     draw_policy(grid, moves, table.values_of("c"), path)
 
 
+def policy_map(system: SystemModel) -> PolicyMap:
+    grid, _moves = system.context
+    return PolicyMap(
+        x="xhat",
+        y="yhat",
+        width=grid.width,
+        height=grid.height,
+        blocked=grid.obstacles(),
+        marks=[("S", *grid.start), ("T", *grid.target)],
+    )
+
+
 CASE_STUDY = CaseStudy(
     name="robot_grid",
     description="Robot on a grid map: when to localise, per estimated cell (the paper's running example)",
     options_type=RobotGridOptions,
     build=build,
     plot_policy=plot_policy,
+    policy_map=policy_map,
     events={"p": SLIP},
     quick={"size": "5", "seed": "1", "horizon": "45", "max_interval": "4"},
     # the paper's nine requirement settings: min success x max cost

@@ -26,6 +26,7 @@ from parley_core import (
     Direction,
     Objective,
     OptionError,
+    PolicyMap,
     PolicyTable,
     Service,
     Simulator,
@@ -283,6 +284,18 @@ def plot_policy(system: SystemModel, table: PolicyTable, path: Path) -> None:
     draw_policy(system.context, table.values_of("c"), path)
 
 
+def policy_map(system: SystemModel) -> PolicyMap:
+    world = system.context
+    return PolicyMap(
+        x="xhat",
+        y="yhat",
+        width=world.size,
+        height=world.size,
+        blocked=sorted(world.obstacles),
+        marks=[("S", *world.start), ("T", *world.target)],
+    )
+
+
 CASE_STUDY = CaseStudy(
     name="turtlebot",
     description="TurtleBot3 with a drifting wheel: when to localise, per estimated cell and heading (the paper's RQ4)",
@@ -295,6 +308,7 @@ CASE_STUDY = CaseStudy(
         draw=closed_loop.draw,
     ),
     plot_policy=plot_policy,
+    policy_map=policy_map,
     quick={"samples": "100", "horizon": "60", "max_period": "3"},
     # 160 of the 196 (xhat, yhat, directionhat) valuations are never consulted: after a move,
     # directionhat is always the heading of that move
