@@ -119,9 +119,33 @@ def check_search(prepared: Prepared, directory: Path, settings: SearchSettings =
             )
 
 
+def check_policy_map(prepared: Prepared) -> None:
+    """A plugin's map (``policy_map``) has observation variables as axes and every cell of
+    the family's valuations, obstacles and marks on the map."""
+    case = prepared.case
+    if case.policy_map is None:
+        return
+    found = case.policy_map(prepared.system)
+    observation = list(prepared.family.observation)
+    _expect(
+        found.x in observation and found.y in observation and found.x != found.y,
+        f"{case.name}: policy_map's axes {found.x}, {found.y} are not two observation variables of {observation}",
+    )
+    if not (found.x in observation and found.y in observation):
+        return
+    i, j = observation.index(found.x), observation.index(found.y)
+    cells = [(v[i], v[j]) for v in prepared.family.valuations] + list(found.blocked)
+    cells += [(x, y) for _, x, y in found.marks]
+    outside = [c for c in cells if not (0 <= c[0] < found.width and 0 <= c[1] < found.height)]
+    _expect(
+        not outside, f"{case.name}: policy_map leaves cells off its {found.width}x{found.height} map: {outside[:3]}"
+    )
+
+
 def check_case_study(case: CaseStudy, directory: Path, options: dict[str, str] | None = None) -> None:
     """Every check, on one case study (with its ``quick`` options unless ``options``)."""
     prepared = prepare_quick(case, options)
     check_model(prepared)
+    check_policy_map(prepared)
     check_baselines(prepared)
     check_search(prepared, directory)

@@ -20,7 +20,13 @@ from collections.abc import Sequence
 import pytest
 
 from parley_core.testing import case_study
-from parley_core.testing.conformance import check_baselines, check_model, check_search, prepare_quick
+from parley_core.testing.conformance import (
+    check_baselines,
+    check_model,
+    check_policy_map,
+    check_search,
+    prepare_quick,
+)
 
 
 class ConformanceSuite:
@@ -49,6 +55,9 @@ class ConformanceSuite:
 
     def test_model_parses_and_names_what_exists(self, parley_prepared) -> None:
         check_model(parley_prepared)
+
+    def test_policy_map_fits_the_observation(self, parley_prepared) -> None:
+        check_policy_map(parley_prepared)
 
     def test_baselines_build_and_check(self, parley_prepared) -> None:
         check_baselines(parley_prepared)
