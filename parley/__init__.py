@@ -17,6 +17,8 @@ bars on stderr unless ``progress=False``), errors as parley's exception types::
     parley.synthesize("pump.prism", props="pump.pctl", decisions={"c": (1, 8)}, observe=["est"])
     parley.exact("web_ids", time_limit=60)
     parley.experiment("robot_grid", store="campaign.sqlite", reps=2, generations=5)
+    parley.evaluate("robot_grid", constant=3), parley.baseline("tas"), parley.case_studies()
+    run.simulate(episodes=1000), parley.run("turtlebot").validate()
 
 The implementation is ``parley_core`` (plugins import it); importing ``parley`` imports
 neither stormpy nor matplotlib, and changes no global state.
@@ -29,6 +31,10 @@ from parley_core.api import (
     Run,
     Selection,
     Summary,
+    augment,
+    baseline,
+    case_studies,
+    evaluate,
     exact,
     experiment,
     load,
@@ -60,6 +66,10 @@ __all__ = [
     "Summary",
     "Valued",
     "__version__",
+    "augment",
+    "baseline",
+    "case_studies",
+    "evaluate",
     "exact",
     "experiment",
     "load",

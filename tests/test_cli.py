@@ -95,6 +95,7 @@ def test_run_writes_the_run_directory_and_is_reproducible(tmp_path):
         "front.png",
         "policy.png",
         "report.html",
+        "map.json",
     }
     assert (first / "front.csv").read_text() == (second / "front.csv").read_text()
     assert (first / "report.html").read_bytes() == (second / "report.html").read_bytes()

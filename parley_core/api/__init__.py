@@ -3,6 +3,7 @@ makes results, value objects out. See :mod:`parley` for the tour."""
 
 from parley_core.api.campaigns import Campaign, experiment
 from parley_core.api.commands import exact, run, synthesize
+from parley_core.api.evaluation import augment, baseline, case_studies, evaluate
 from parley_core.api.runs import Optimality, Run, Selection, Summary, load
 
 __all__ = [
@@ -11,6 +12,10 @@ __all__ = [
     "Run",
     "Selection",
     "Summary",
+    "augment",
+    "baseline",
+    "case_studies",
+    "evaluate",
     "exact",
     "experiment",
     "load",

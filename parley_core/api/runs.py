@@ -28,6 +28,9 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from parley_core.pipeline import RunResult
+    from parley_core.progress import Reporter
+    from parley_core.simulator import Estimate
+    from parley_core.validate import Validation
 
 
 def _mapping(value: Mapping[str, Any]) -> Mapping[str, Any]:
@@ -178,6 +181,35 @@ class Run:
         return Selection(
             policy=self.policy(name), values=dict(zip((o.name for o in self.objectives), values)), run=self
         )
+
+    def simulate(
+        self, policy: str | Selection | None = None, *, episodes: int = 10_000, seed: int = 1, max_steps: int = 10_000
+    ) -> list[Estimate | str]:
+        """``parley simulate``: a front policy (its name, a :class:`Selection`, or the knee)
+        in Storm's simulator; per objective an estimate with its 99 % interval next to the
+        model-checked value (or a sentence saying why it cannot be simulated)."""
+        from parley_core.simulate import simulate
+        from parley_core.usermodel import family_of_run
+
+        name = self.summary.selected if policy is None else policy.name if isinstance(policy, Selection) else policy
+        return simulate(family_of_run(self.files), self.policy(name).values, episodes, seed, max_steps)
+
+    def validate(
+        self,
+        policy: str = "knee",
+        *,
+        episodes: int = 1000,
+        seed: int = 1,
+        baselines: bool = True,
+        progress: bool | Reporter = True,
+    ) -> Validation:
+        """``parley validate``: the policy (and the baselines) in closed loop on the case
+        study's simulator (turtlebot: MuJoCo), against Storm's values."""
+        from parley_core.api.commands import reporting
+        from parley_core.validate import validate
+
+        with reporting(progress) as reporter:
+            return validate(self.directory, policy, episodes, seed, baselines, reporter)
 
     def plot(self) -> Figure:
         """The front against the baseline and the bound, as ``front.png`` (a matplotlib Figure)."""

@@ -10,7 +10,7 @@ import typer
 from rich.console import Console
 
 from parley_core.cli.app import app
-from parley_core.cli.common import prepare_case, user_errors
+from parley_core.cli.common import case_study, prepare_case, user_errors
 from parley_core.cli.console import RichReporter, front_table, stderr, values_json
 from parley_core.cli.options import CaseArgument, EvaluatorOption, JsonOption, SetOption, WorkersOption
 from parley_core.evaluate import EvaluatorKind
@@ -31,24 +31,25 @@ def evaluate_command(
     workers: WorkersOption = None,
 ) -> None:
     """Evaluate policies and print their objective values."""
-    from parley_core.evaluate import make_evaluator
-    from parley_core.pipeline import evaluate
-    from parley_core.policies import policies_or_constant
+    from parley_core.api.evaluation import evaluate
+    from parley_core.options import parse_assignments
 
     kind = EvaluatorKind.of(evaluator)
+    options = parse_assignments(set_ or [])
     with RichReporter(stderr()) as reporter:
-        prepared = prepare_case(case, set_, reporter)
-        chosen = policies_or_constant(prepared.family, policies, constant)
-        reporter.stage(f"{kind.value} evaluator")
-        engine = make_evaluator(prepared.family, kind, workers)
-        try:
-            front = evaluate(prepared.family, chosen, engine, reporter, stage=f"evaluate ({kind.value})")
-        except BaseException:
-            engine.close(abort=True)
-            raise
-        engine.close()
+        front = evaluate(
+            case,
+            policies=policies,
+            constant=constant,
+            evaluator=evaluator,
+            workers=workers,
+            progress=reporter,
+            options=options,
+        )
+    study = case_study(case)
+    chosen = study.options_from(options)
     if json_:
-        document = values_json(prepared.case, prepared.options, front)
+        document = values_json(study, chosen, front)
         document["evaluator"] = kind.value
         print(json.dumps(document, indent=2))
     else:
