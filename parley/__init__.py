@@ -27,12 +27,14 @@ neither stormpy nor matplotlib, and changes no global state.
 from parley_core import __version__
 from parley_core.api import (
     Campaign,
+    CampaignReport,
     Optimality,
     Run,
     Selection,
     Summary,
     augment,
     baseline,
+    campaign_report,
     case_studies,
     evaluate,
     exact,
@@ -49,6 +51,7 @@ from parley_core.urc import URC
 __all__ = [
     "URC",
     "Campaign",
+    "CampaignReport",
     "Constraint",
     "Front",
     "ModelError",
@@ -68,6 +71,7 @@ __all__ = [
     "__version__",
     "augment",
     "baseline",
+    "campaign_report",
     "case_studies",
     "evaluate",
     "exact",

@@ -165,7 +165,7 @@ def test_the_docs_examples_run(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     namespace: dict = {}
     blocks = python_blocks()
-    assert len(blocks) >= 8
+    assert len(blocks) >= 9
     for block in blocks:
         exec(compile(block, "docs/api.md", "exec"), namespace)
     out = capsys.readouterr().out
@@ -177,6 +177,7 @@ def test_the_docs_examples_run(tmp_path, monkeypatch, capsys):
     validated = namespace["checked"].policies
     assert validated and all([e.objective for e in p.estimates] == ["success", "energy"] for p in validated)
     assert "robot_grid" in out and "holes" in out
+    assert namespace["report"].page.is_file() and "| all |" in out
 
 
 def test_the_readmes_example_runs(tmp_path, monkeypatch):

@@ -1,19 +1,21 @@
 """The library API, published as the :mod:`parley` package: one function per command that
 makes results, value objects out. See :mod:`parley` for the tour."""
 
-from parley_core.api.campaigns import Campaign, experiment
+from parley_core.api.campaigns import Campaign, CampaignReport, campaign_report, experiment
 from parley_core.api.commands import exact, run, synthesize
 from parley_core.api.evaluation import augment, baseline, case_studies, evaluate
 from parley_core.api.runs import Optimality, Run, Selection, Summary, load
 
 __all__ = [
     "Campaign",
+    "CampaignReport",
     "Optimality",
     "Run",
     "Selection",
     "Summary",
     "augment",
     "baseline",
+    "campaign_report",
     "case_studies",
     "evaluate",
     "exact",

@@ -27,6 +27,79 @@ class Campaign:
     failures: tuple[tuple[str, int, str], ...] = field(converter=lambda rows: tuple(tuple(r) for r in rows))
     """(instance, repetition, error) of each failed run; rerunning retries them."""
 
+    def report(self, out: str | Path, **how: Any) -> CampaignReport:
+        """:func:`campaign_report` of this campaign."""
+        return campaign_report(self.store, out, name=self.name, **how)
+
+
+@frozen(kw_only=True)
+class CampaignReport:
+    """What ``parley experiment report`` wrote."""
+
+    directory: Path
+    table2: str
+    """table2.md's text: per requirement setting, better/worse/same than the baseline."""
+    files: tuple[Path, ...] = field(converter=tuple[Path, ...])
+
+    @property
+    def page(self) -> Path:
+        """The interactive report.html (Table 2 and the box plots per setting)."""
+        return self.directory / "report.html"
+
+    def _repr_html_(self) -> str:
+        import html
+
+        text = self.page.read_text(encoding="utf-8")
+        return f'<iframe srcdoc="{html.escape(text, quote=True)}" style="width:100%;height:900px;border:0"></iframe>'
+
+
+def campaign_report(
+    store: str | Path,
+    out: str | Path,
+    *,
+    name: str | None = None,
+    settings: Sequence[str | Sequence[float]] = (),
+    figure_setting: str | Sequence[float] | None = None,
+    published: str | Path | None = None,
+    force: bool = False,
+) -> CampaignReport:
+    """``parley experiment report``: Table 2, its CSV, the box plots and report.html of a
+    campaign in ``out``. ``settings``: requirement settings, each one worst acceptable value
+    per objective (``"0.7,80"`` or ``(0.7, 80)``; default: the case study's)."""
+    from parley_core.errors import OptionError
+    from parley_core.experiment import report as reports
+    from parley_core.experiment.store import Store
+    from parley_core.plugins import load_registry
+    from parley_core.report import check_output
+
+    store, out = Path(store), Path(out)
+    if not store.is_file():
+        raise OptionError(f"store {store} does not exist; give the file of `parley experiment run --store`")
+    if published is not None and not Path(published).is_dir():
+        raise OptionError(f"--published {published} is not a directory")
+    check_output(out, force)
+    with Store(store) as results:
+        chosen, case_name, settings_record = results.campaign(name)
+        records = list(results.runs(chosen))
+    if not records:
+        raise OptionError(f"campaign {chosen} in {store} has no finished run yet")
+    n = len(records[0].objectives)
+
+    def setting(value: str | Sequence[float]) -> tuple[float, ...]:
+        return reports.parse_setting(value if isinstance(value, str) else ",".join(map(str, value)), n)
+
+    text, written = reports.write_report(
+        records,
+        out,
+        campaign=chosen,
+        case=load_registry().get(case_name),
+        settings_record=settings_record,
+        settings=[setting(s) for s in settings],
+        figure_setting=setting(figure_setting) if figure_setting is not None else None,
+        published=Path(published) if published is not None else None,
+    )
+    return CampaignReport(directory=out, table2=text, files=written)
+
 
 def experiment(
     case: str,

@@ -177,32 +177,21 @@ def experiment_report(
     force: Annotated[bool, typer.Option(help="Replace the files of an existing --out directory.")] = False,
 ) -> None:
     """Report a campaign: Table 2 (per setting: better/worse/same than the baseline), box plots, CSV."""
-    from parley_core.experiment import report as campaign_report
-    from parley_core.experiment.store import Store
-    from parley_core.report import check_output
+    from parley_core.api.campaigns import campaign_report
 
     _existing(store)
-    if published is not None and not published.is_dir():
-        raise OptionError(f"--published {published} is not a directory")
-    check_output(out, force)
-    with Store(store) as results:
-        chosen, case_name, settings_record = results.campaign(name)
-        records = list(results.runs(chosen))
-    if not records:
-        raise OptionError(f"campaign {chosen} in {store} has no finished run yet")
-    n = len(records[0].objectives)
-    text, written = campaign_report.write_report(
-        records,
+    made = campaign_report(
+        store,
         out,
-        campaign=chosen,
-        case=case_study(case_name),
-        settings_record=settings_record,
-        settings=[campaign_report.parse_setting(s, n) for s in setting or []],
-        figure_setting=campaign_report.parse_setting(figure_setting, n) if figure_setting else None,
+        name=name,
+        settings=setting or (),
+        figure_setting=figure_setting,
         published=published,
+        force=force,
     )
+    text, written = made.table2, made.files
     Console().print(text)
-    Console().print(f"wrote {out}/table2.md, table2.csv and {len(written) - 2} figures")
+    Console().print(f"wrote {out}/table2.md, table2.csv, report.html and {len(written) - 3} figures")
 
 
 @experiment_app.command("scalability")
