@@ -4,6 +4,8 @@ a :class:`~parley_core.progress.Reporter`), shared by the ``parley`` command and
 
 from __future__ import annotations
 
+from contextlib import AbstractContextManager, nullcontext
+
 from rich.console import Console
 from rich.progress import (
     BarColumn,
@@ -14,6 +16,8 @@ from rich.progress import (
     TextColumn,
     TimeElapsedColumn,
 )
+
+from parley_core.progress import NullReporter, Reporter
 
 
 def stderr() -> Console:
@@ -68,3 +72,12 @@ class RichReporter:
 
     def note(self, text: str) -> None:
         self.progress.console.print(f"[yellow]note:[/] {text}")
+
+
+def reporting(progress: bool | Reporter) -> AbstractContextManager[Reporter]:
+    """The reporter of ``progress``: rich bars on stderr (True), none (False), or the caller's."""
+    if progress is True:
+        return RichReporter(Console(stderr=True))
+    if progress is False or progress is None:
+        return nullcontext(NullReporter())
+    return nullcontext(progress)

@@ -9,9 +9,10 @@ from typing import Any
 
 from attrs import field, frozen
 
-from parley_core.api.commands import DEFAULT_POPULATION, assignments_of, reporting, search_settings
+from parley_core.api.commands import DEFAULT_POPULATION, assignments_of, search_settings
 from parley_core.evaluate import EvaluatorKind
 from parley_core.progress import Reporter
+from parley_core.richprogress import reporting
 
 
 @frozen(kw_only=True)

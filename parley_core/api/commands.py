@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 from typing import Any
 
@@ -21,22 +20,10 @@ from parley_core.api.runs import Run, load
 from parley_core.constraints import Constraint
 from parley_core.errors import OptionError
 from parley_core.evaluate import EvaluatorKind
-from parley_core.progress import NullReporter, Reporter
+from parley_core.progress import Reporter
+from parley_core.richprogress import reporting
 
 DEFAULT_POPULATION = 100
-
-
-def reporting(progress: bool | Reporter) -> AbstractContextManager[Reporter]:
-    """The reporter of ``progress``: rich bars on stderr (True), none (False), or the caller's."""
-    if progress is True:
-        from rich.console import Console
-
-        from parley_core.richprogress import RichReporter
-
-        return RichReporter(Console(stderr=True))
-    if progress is False or progress is None:
-        return nullcontext(NullReporter())
-    return nullcontext(progress)
 
 
 def constraints_of(items: Iterable[str | Constraint] | None) -> tuple[Constraint, ...]:

@@ -9,11 +9,12 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from parley_core.api.commands import assignments_of, decision_specs, prepare_case, reporting
+from parley_core.api.commands import assignments_of, decision_specs, prepare_case
 from parley_core.casestudy import CaseStudy
 from parley_core.evaluate import EvaluatorKind
 from parley_core.model import Policy, Valued
 from parley_core.progress import Reporter
+from parley_core.richprogress import reporting
 
 
 def case_studies() -> dict[str, CaseStudy]:

@@ -205,7 +205,7 @@ class Run:
     ) -> Validation:
         """``parley validate``: the policy (and the baselines) in closed loop on the case
         study's simulator (turtlebot: MuJoCo), against Storm's values."""
-        from parley_core.api.commands import reporting
+        from parley_core.richprogress import reporting
         from parley_core.validate import validate
 
         with reporting(progress) as reporter:
