@@ -339,7 +339,13 @@ def run(
     )
 
 
-def _outer(family: Family, engine: Evaluator, method: str):
+def family_bound(family: Family, method: str = "pareto") -> Bound:
+    """A family's cheap certified outer bound on its own ("pareto" or "ideal", as a run's
+    ``bound``): what a campaign stores once per instance."""
+    return _outer(family, None, method)[0]
+
+
+def _outer(family: Family, engine: Evaluator | None, method: str):
     """The cheap bound (the ideal point, cut by weighted sums for "pareto") and the family's
     relaxed objectives it was computed on, for branch and bound to reuse."""
     from parley_core.bound import ideal_point, pareto_outer

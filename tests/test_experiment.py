@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import os
 import signal
 import sqlite3
@@ -13,7 +14,7 @@ import numpy as np
 import pytest
 
 from parley_core.errors import OptionError, OutputError
-from parley_core.experiment import report
+from parley_core.experiment import report, table2
 from parley_core.experiment.campaign import Budget, execute, instance_label, instances_from, plan
 from parley_core.experiment.stats import a12, compare
 from parley_core.experiment.store import RunRecord, Store, baseline_from_json, front_from_json
@@ -101,7 +102,7 @@ def test_report_on_fronts_with_known_hypervolumes():
     assert by["better"].baseline_igd == pytest.approx(0.25)
     assert by["better"].igd[9] == pytest.approx(0.0)
     assert (by["better"].igd_verdict, by["worse"].igd_verdict) == ("better", "worse")
-    assert "| 0.7 | 80 | 1/1/0 |" in report.table2_markdown(rows, [(0.7, 80.0)], ["success >=", "cost <="], False)
+    assert "| 0.7 | 80 | 1/1/0 |" in table2.table2_markdown(rows, [(0.7, 80.0)], ["success >=", "cost <="], False)
 
 
 def test_report_compares_with_published_fronts(tmp_path):
@@ -220,7 +221,7 @@ def test_unverified_fronts_are_verified_later_by_storm(tmp_path):
         # a sample first: repetition 1 of each instance
         assert verify_stored(store, "v", "robot_grid", workers=1, repetitions={1})[:2] == (2, 0)
         assert sorted(r.repetition for r in store.runs("v") if r.verified) == [1, 1]
-        document = report.table2_document(
+        document = table2.table2_document(
             "v", "robot_grid", {}, list(store.runs("v")), [], [], ["success >=", "cost <="], False
         )
         assert "Front values: Storm's for 2 of 4 runs" in document
@@ -231,5 +232,43 @@ def test_unverified_fronts_are_verified_later_by_storm(tmp_path):
         for old, new in zip(before, after):
             assert np.allclose(old.front.values, new.front.values, atol=1e-9)
         assert verify_stored(store, "v", "robot_grid", workers=1)[:2] == (0, 4)
-        document = report.table2_document("v", "robot_grid", {}, after, [], [], ["success >=", "cost <="], False)
+        document = table2.table2_document("v", "robot_grid", {}, after, [], [], ["success >=", "cost <="], False)
         assert "Front values: Storm's, every front re-checked" in document
+
+
+def test_campaign_bounds_are_stored_once_and_give_the_reports_gap_column(tmp_path):
+    import parley
+    from parley_core import metrics
+    from parley_core.experiment.store import Store
+
+    store = tmp_path / "c.sqlite"
+    campaign = parley.experiment(
+        "robot_grid", store=store, grid=["size=4,5"], reps=2, population=10, generations=2, workers=1, progress=False
+    )
+    assert campaign.bound(workers=1, progress=False) == 2
+    assert campaign.bound(workers=1, progress=False) == 0  # stored: skipped
+    with Store(store) as results:
+        bounds = results.bounds("robot_grid")
+        records = list(results.runs("robot_grid"))
+    assert sorted(bounds) == ["size=4", "size=5"]
+    for record in records:  # sound on every stored (Storm-verified) front: each point is weakly dominated
+        front = np.array(record.front.values)
+        directions = [o.direction for o in record.objectives]
+        signs = np.array([d.sign for d in directions])  # +1 minimised
+        bound = bounds[record.instance] * signs
+        for point in front * signs:
+            assert (bound <= point + 1e-9).all(axis=1).any()
+        for setting in [(0.6, 60.0), (0.8, 100.0)]:
+            assert (
+                metrics.hypervolume(front, directions, setting)
+                <= metrics.hypervolume(bounds[record.instance], directions, setting) + 1e-9
+            )
+    made = campaign.report(tmp_path / "report")
+    header = next(line for line in made.table2.splitlines() if line.startswith("| success"))
+    assert header.endswith("median gap to the bound |")
+    total = made.table2.strip().splitlines()[-1]
+    assert total.startswith("| all |") and "%" in total.split("|")[-2]
+    assert "median gap to the bound" in (tmp_path / "report" / "report.html").read_text()
+    with open(tmp_path / "report" / "table2.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert all(float(r["median_bound_gap"]) >= -1e-9 for r in rows if r["median_bound_gap"])

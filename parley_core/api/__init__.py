@@ -1,7 +1,7 @@
 """The library API, published as the :mod:`parley` package: one function per command that
 makes results, value objects out. See :mod:`parley` for the tour."""
 
-from parley_core.api.campaigns import Campaign, CampaignReport, campaign_report, experiment
+from parley_core.api.campaigns import Campaign, CampaignReport, campaign_bounds, campaign_report, experiment
 from parley_core.api.commands import exact, run, synthesize
 from parley_core.api.evaluation import augment, baseline, case_studies, evaluate
 from parley_core.api.runs import Optimality, Run, Selection, Summary, load
@@ -15,6 +15,7 @@ __all__ = [
     "Summary",
     "augment",
     "baseline",
+    "campaign_bounds",
     "campaign_report",
     "case_studies",
     "evaluate",

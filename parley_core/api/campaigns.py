@@ -28,6 +28,10 @@ class Campaign:
     failures: tuple[tuple[str, int, str], ...] = field(converter=lambda rows: tuple(tuple(r) for r in rows))
     """(instance, repetition, error) of each failed run; rerunning retries them."""
 
+    def bound(self, **how: Any) -> int:
+        """:func:`campaign_bounds` of this campaign."""
+        return campaign_bounds(self.store, name=self.name, **how)
+
     def report(self, out: str | Path, **how: Any) -> CampaignReport:
         """:func:`campaign_report` of this campaign."""
         return campaign_report(self.store, out, name=self.name, **how)
@@ -52,6 +56,31 @@ class CampaignReport:
 
         text = self.page.read_text(encoding="utf-8")
         return f'<iframe srcdoc="{html.escape(text, quote=True)}" style="width:100%;height:900px;border:0"></iframe>'
+
+
+def campaign_bounds(
+    store: str | Path,
+    *,
+    name: str | None = None,
+    method: str = "pareto",
+    again: bool = False,
+    workers: int | None = None,
+    progress: bool | Reporter = True,
+) -> int:
+    """``parley experiment bound``: each instance's certified outer bound, computed once and
+    stored (instances that have one are skipped unless ``again``); the number computed now.
+    The campaign report then gives the median gap to the bound per requirement setting."""
+    from parley_core.errors import OptionError
+    from parley_core.experiment import bounds
+    from parley_core.experiment.store import Store
+
+    if not Path(store).is_file():
+        raise OptionError(f"store {store} does not exist; give the file of `parley experiment run --store`")
+    with Store(Path(store)) as results, reporting(progress) as reporter:
+        chosen, case_name, _settings = results.campaign(name)
+        tasks = bounds.plan(results, chosen, case_name, method, again)
+        reporter.stage(f"bounds of {chosen}", len(tasks))
+        return bounds.run(tasks, results, workers=workers, progress=reporter.advance)
 
 
 def campaign_report(
@@ -82,6 +111,7 @@ def campaign_report(
     with Store(store) as results:
         chosen, case_name, settings_record = results.campaign(name)
         records = list(results.runs(chosen))
+        stored_bounds = results.bounds(chosen)
     if not records:
         raise OptionError(f"campaign {chosen} in {store} has no finished run yet")
     n = len(records[0].objectives)
@@ -98,6 +128,7 @@ def campaign_report(
         settings=[setting(s) for s in settings],
         figure_setting=setting(figure_setting) if figure_setting is not None else None,
         published=Path(published) if published is not None else None,
+        bounds=stored_bounds,
     )
     return CampaignReport(directory=out, table2=text, files=written)
 

@@ -153,6 +153,28 @@ def experiment_verify(
     )
 
 
+@experiment_app.command("bound")
+@user_errors
+def experiment_bound(
+    store: StoreOption,
+    name: NameOption = None,
+    method: Annotated[
+        str, typer.Option(help="pareto (the outer approximation of a run's default bound) or ideal (its ideal point).")
+    ] = "pareto",
+    again: Annotated[bool, typer.Option(help="Compute the bounds of instances that have one again.")] = False,
+    workers: Annotated[
+        int | None, typer.Option("--workers", "-j", min=1, help="Instances at once (default: one per core).")
+    ] = None,
+) -> None:
+    """Compute each instance's certified outer bound once and store it; `experiment report` then gives the
+    median gap to the bound per requirement setting."""
+    from parley_core.api.campaigns import campaign_bounds
+
+    _existing(store)
+    stored = campaign_bounds(store, name=name, method=method, again=again, workers=workers)
+    Console().print(f"{stored} instance bounds computed and stored in {store}")
+
+
 @experiment_app.command("report")
 @user_errors
 def experiment_report(

@@ -20,10 +20,8 @@ way. See docs/metrics.md.
 
 from __future__ import annotations
 
-import csv
-import io
 from collections import defaultdict
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -33,8 +31,10 @@ from attrs import frozen
 from parley_core import metrics
 from parley_core.casestudy import CaseStudy
 from parley_core.errors import OptionError
+from parley_core.experiment import bounds as instance_bounds
 from parley_core.experiment.stats import compare
 from parley_core.experiment.store import RunRecord
+from parley_core.experiment.table2 import VERDICTS, counts, has_bounds, median_gap_text, rows_csv, table2_document
 from parley_core.model import Direction
 from parley_core.plotting import figure, save
 
@@ -66,6 +66,8 @@ class Row:
     published_verdict: str = ""
     published_p: float = float("nan")
     published_a12: float = float("nan")
+    bound_hv: float = float("nan")
+    """The hypervolume of the instance's certified bound in the setting's box (nan: none stored)."""
 
 
 def parse_setting(text: str, n_objectives: int) -> Setting:
@@ -115,7 +117,12 @@ def published_fronts(directory: Path, instance: str, n_objectives: int) -> list[
     return fronts
 
 
-def analyze(records: Sequence[RunRecord], settings: Sequence[Setting], published: Path | None = None) -> list[Row]:
+def analyze(
+    records: Sequence[RunRecord],
+    settings: Sequence[Setting],
+    published: Path | None = None,
+    bounds: Mapping[str, np.ndarray] | None = None,
+) -> list[Row]:
     by_instance: dict[str, list[RunRecord]] = defaultdict(list)
     for record in records:
         by_instance[record.instance].append(record)
@@ -168,6 +175,7 @@ def analyze(records: Sequence[RunRecord], settings: Sequence[Setting], published
                 baseline_igd=base_igd,
                 igd=igd,
                 igd_verdict=igd_test.verdict if igd_test else "same",
+                bound_hv=instance_bounds.hypervolume((bounds or {}).get(instance), directions, setting),
             )
             if theirs:
                 their_hv = tuple(metrics.hypervolume(f, directions, setting) for f in theirs)
@@ -181,137 +189,6 @@ def analyze(records: Sequence[RunRecord], settings: Sequence[Setting], published
                 row.update(published_igd=tuple(_igd(f, directions, setting, ideal, box_front) for f in theirs))
             rows.append(Row(**row))
     return rows
-
-
-def counts(rows: Sequence[Row], setting: Setting, attribute: str) -> tuple[int, int, int]:
-    verdicts = [getattr(r, attribute) for r in rows if r.setting == setting]
-    return verdicts.count("better"), verdicts.count("worse"), verdicts.count("same")
-
-
-VERDICTS = (("hv", "HV"), ("spread", "SP"), ("gap", "paper's SP"), ("igd", "IGD+"))
-"""Table 2's comparisons with the baseline: the verdict attribute's prefix and its column."""
-
-
-def table2_markdown(rows: Sequence[Row], settings: Sequence[Setting], names: Sequence[str], published: bool) -> str:
-    out = io.StringIO()
-    head = f"| {' | '.join(names)} |" + "".join(f" {label} better/worse/same |" for _, label in VERDICTS)
-    if published:
-        head += " HV vs published better/worse/same | median HV >= published |"
-    out.write(head + "\n|" + "---|" * (head.count("|") - 1) + "\n")
-    groups = len(VERDICTS) + (1 if published else 0)
-    totals = np.zeros((groups, 3), dtype=int)
-    for setting in settings:
-        found = [counts(rows, setting, f"{key}_verdict") for key, _ in VERDICTS]
-        if published:
-            found.append(counts(rows, setting, "published_verdict"))
-        totals += np.array(found, dtype=int)
-        line = f"| {' | '.join(f'{b:g}' for b in setting)} |" + "".join(f" {'/'.join(map(str, c))} |" for c in found)
-        if published:
-            selected = [r for r in rows if r.setting == setting and r.published_hv]
-            at_least = sum(np.median(r.hv) >= np.median(r.published_hv) for r in selected)
-            line += f" {at_least}/{len(selected)} |"
-        out.write(line + "\n")
-    total = "| all |" + " |" * (len(names) - 1) + "".join(f" {'/'.join(map(str, t))} |" for t in totals)
-    if published:
-        total += " |"
-    out.write(total + "\n")
-    return out.getvalue()
-
-
-def table2_document(
-    campaign: str,
-    case_name: str,
-    settings_record,
-    records: Sequence[RunRecord],
-    rows: Sequence[Row],
-    settings: Sequence[Setting],
-    header: Sequence[str],
-    published: bool,
-) -> str:
-    """table2.md: what the campaign holds, whose values its fronts are, and Table 2."""
-    instances = {r.instance for r in records}
-    reps = {r.repetition for r in records}
-    checked = [r for r in records if r.verified]
-    worst = max((r.verification.max_difference for r in checked if r.verification), default=0.0)
-    if len(checked) == len(records):
-        provenance = f"Storm's, every front re-checked (largest difference from the search's values {worst:.1e})"
-    elif checked:
-        provenance = (
-            f"Storm's for {len(checked)} of {len(records)} runs (largest difference {worst:.1e}); the others the "
-            "search evaluator's (`parley experiment verify` re-checks them)"
-        )
-    else:
-        provenance = "the search evaluator's, not re-checked by Storm yet (`parley experiment verify` re-checks them)"
-    return (
-        f"# Campaign {campaign} ({case_name})\n\n{len(instances)} instances x {len(reps)} repetitions "
-        f"({len(records)} runs); settings: {settings_record}.\nFront values: {provenance}.\n\n"
-        "Per requirement setting (bounds), the number of instances where parley is significantly better / worse / "
-        "not different from the baseline (Mann-Whitney U at 0.05 on the repetitions' gains against zero; A12 per "
-        "instance in table2.csv). HV: hypervolume with the bounds as reference; SP: Deb's spread; paper's SP: the "
-        "paper's mean neighbor distance; IGD+: distance from the best known front (lower is better for the last "
-        "three).\n\n" + table2_markdown(rows, settings, header, published)
-    )
-
-
-def rows_csv(rows: Sequence[Row], names: Sequence[str]) -> str:
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(
-        [
-            "instance",
-            *(f"bound_{n}" for n in names),
-            "baseline_hv",
-            "median_hv",
-            "hv_verdict",
-            "hv_p",
-            "hv_a12",
-            "baseline_spread",
-            "median_spread",
-            "spread_verdict",
-            "spread_p",
-            "spread_a12",
-            "baseline_paper_spread",
-            "median_paper_spread",
-            "paper_spread_verdict",
-            "baseline_igd_plus",
-            "median_igd_plus",
-            "igd_plus_verdict",
-            "published_median_igd_plus",
-            "published_median_hv",
-            "published_verdict",
-            "published_p",
-            "published_a12",
-        ]
-    )
-    for r in rows:
-        writer.writerow(
-            [
-                r.instance,
-                *r.setting,
-                r.baseline_hv,
-                float(np.median(r.hv)),
-                r.hv_verdict,
-                r.hv_p,
-                r.hv_a12,
-                r.baseline_spread,
-                float(np.median(r.spread)),
-                r.spread_verdict,
-                r.spread_p,
-                r.spread_a12,
-                r.baseline_gap,
-                float(np.median(r.gap)),
-                r.gap_verdict,
-                r.baseline_igd,
-                float(np.median(r.igd)),
-                r.igd_verdict,
-                float(np.median(r.published_igd)) if r.published_igd else "",
-                float(np.median(r.published_hv)) if r.published_hv else "",
-                r.published_verdict,
-                "" if not r.published_hv else r.published_p,
-                "" if not r.published_hv else r.published_a12,
-            ]
-        )
-    return out.getvalue()
 
 
 def box_plots(rows: Sequence[Row], setting: Setting, caption: str, path_stem: Path) -> list[Path]:
@@ -347,6 +224,7 @@ def write_report(
     settings: Sequence[Setting] | None = None,
     figure_setting: Setting | None = None,
     published: Path | None = None,
+    bounds: Mapping[str, np.ndarray] | None = None,
 ) -> tuple[str, list[Path]]:
     """Write table2.md, table2.csv and the box plots of a campaign into ``out``; returns
     table2.md's text and the files written. ``settings`` default to the case study's
@@ -361,7 +239,7 @@ def write_report(
         raise OptionError(f"{case.name} declares no requirement settings; give --setting (one bound per objective)")
     if figure_setting is None:
         figure_setting = case.figure_setting if case.figure_setting in settings else settings[0]
-    rows = analyze(records, settings, published)
+    rows = analyze(records, settings, published, bounds)
     header = [f"{o.name} {'>=' if o.direction is Direction.MAX else '<='}" for o in objectives]
     text = table2_document(campaign, case.name, settings_record, records, rows, settings, header, published is not None)
     out.mkdir(parents=True, exist_ok=True)
@@ -377,6 +255,7 @@ def write_report(
         header,
         table=[(s, [counts(rows, s, f"{key}_verdict") for key, _ in VERDICTS]) for s in settings],
         labels=[label for _, label in VERDICTS],
+        gaps=[median_gap_text(rows, s) for s in settings] + [median_gap_text(rows)] if has_bounds(rows) else (),
         title=f"parley campaign {campaign} ({case.name})",
         description=text.split("\n\n")[1] if "\n\n" in text else "",
         chosen=figure_setting,

@@ -43,6 +43,14 @@ CREATE TABLE IF NOT EXISTS runs (
     finished REAL NOT NULL,
     PRIMARY KEY (campaign, instance, repetition)
 );
+CREATE TABLE IF NOT EXISTS bounds (
+    campaign TEXT NOT NULL REFERENCES campaigns(name),
+    instance TEXT NOT NULL,
+    method TEXT NOT NULL,
+    points TEXT NOT NULL,
+    seconds REAL NOT NULL,
+    PRIMARY KEY (campaign, instance)
+);
 """
 
 
@@ -220,6 +228,21 @@ class Store:
                 baseline=baseline_from_json(objectives, json.loads(row[7])),
                 summary=json.loads(row[8]),
             )
+
+    def add_bound(self, campaign: str, instance: str, method: str, points: np.ndarray, seconds: float) -> None:
+        """Store an instance's certified outer bound (every policy of its family is weakly
+        dominated by one of ``points``), replacing an earlier one."""
+        rows = [[float(v) for v in row] for row in np.asarray(points, dtype=float)]
+        with self._transaction():
+            self.connection.execute(
+                "INSERT OR REPLACE INTO bounds (campaign, instance, method, points, seconds) VALUES (?, ?, ?, ?, ?)",
+                (campaign, instance, method, json.dumps(rows), seconds),
+            )
+
+    def bounds(self, campaign: str) -> dict[str, np.ndarray]:
+        """The stored bounds of a campaign's instances (points, one row per point)."""
+        rows = self.connection.execute("SELECT instance, points FROM bounds WHERE campaign = ?", (campaign,))
+        return {instance: np.array(json.loads(points), dtype=float) for instance, points in rows}
 
     def replace_front(self, record: RunRecord) -> None:
         """Replace a stored run's front and summary (after verification), in one transaction."""

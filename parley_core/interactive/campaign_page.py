@@ -49,23 +49,33 @@ def boxes(rows: Sequence[Row], setting: Setting, key: str, base: str) -> dict[st
 
 
 def table2_html(
-    table: Sequence[tuple[Setting, Sequence[tuple[int, int, int]]]], header: Sequence[str], labels: Sequence[str]
+    table: Sequence[tuple[Setting, Sequence[tuple[int, int, int]]]],
+    header: Sequence[str],
+    labels: Sequence[str],
+    gaps: Sequence[str] = (),
 ) -> str:
     """Table 2 as an HTML table: per setting, better/worse/same per comparison (``labels``),
+    the median gap to the bound (``gaps``: one text per setting and the total's, if any),
     and the total."""
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     head += "".join(f"<th>{label} better/worse/same</th>" for label in labels)
+    if gaps:
+        head += "<th>median gap to the bound</th>"
     lines = []
     totals = np.zeros((len(labels), 3), dtype=int)
-    for setting, counted in table:
+    for k, (setting, counted) in enumerate(table):
         found = np.array(counted, dtype=int)
         totals += found
         cells = "".join(f"<td>{b:g}</td>" for b in setting)
         cells += "".join(f"<td>{'/'.join(map(str, c))}</td>" for c in found)
+        if gaps:
+            cells += f"<td>{html.escape(gaps[k])}</td>"
         lines.append(f"<tr>{cells}</tr>")
     total = f"<td colspan='{len(header)}'><b>all</b></td>" + "".join(
         f"<td><b>{'/'.join(map(str, t))}</b></td>" for t in totals
     )
+    if gaps:
+        total += f"<td><b>{html.escape(gaps[-1])}</b></td>"
     lines.append(f"<tr>{total}</tr>")
     return (
         "<table class='table2' border='1' cellpadding='4' style='border-collapse:collapse'>"
@@ -80,6 +90,7 @@ def render(
     *,
     table: Sequence[tuple[Setting, Sequence[tuple[int, int, int]]]],
     labels: Sequence[str],
+    gaps: Sequence[str] = (),
     title: str,
     description: str,
     chosen: Setting,
@@ -137,7 +148,8 @@ def render(
         ),
     )
     header_div = Div(
-        text=f"<h2>{html.escape(title)}</h2><p>{html.escape(description)}</p>" + table2_html(table, header, labels),
+        text=f"<h2>{html.escape(title)}</h2><p>{html.escape(description)}</p>"
+        + table2_html(table, header, labels, gaps),
         width=1000,
         name="table2",
     )
