@@ -16,8 +16,11 @@ def _alive(pid: int) -> bool:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
-    with open(f"/proc/{pid}/stat") as handle:  # a zombie is gone too
-        return handle.read().split()[2] != "Z"
+    try:
+        with open(f"/proc/{pid}/stat") as handle:  # a zombie is gone too
+            return handle.read().split()[2] != "Z"
+    except (FileNotFoundError, ProcessLookupError):  # it ended between the two looks (reading gives ESRCH)
+        return False
 
 
 def _wait_gone(pids: list[int], seconds: float = 10.0) -> bool:
