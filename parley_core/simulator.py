@@ -66,12 +66,12 @@ class Estimate:
     objective: str
     kind: str
     """``probability``, ``mean`` or ``mean reward``"""
-    mean: float
-    low: float
-    high: float
-    checked: float
-    episodes: int
-    cut: int = 0
+    mean: float = field(converter=float)
+    low: float = field(converter=float)
+    high: float = field(converter=float)
+    checked: float = field(converter=float)
+    episodes: int = field(converter=int)
+    cut: int = field(default=0, converter=int)
 
     @property
     def agrees(self) -> bool:
