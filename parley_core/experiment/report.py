@@ -249,12 +249,13 @@ def write_report(
     figures = box_plots(rows, figure_setting, caption, out / "gains")
     from parley_core.interactive import campaign_page
 
+    compared = [key for key, _ in VERDICTS] + (["published"] if published is not None else [])
     page = campaign_page.render(
         rows,
         settings,
         header,
-        table=[(s, [counts(rows, s, f"{key}_verdict") for key, _ in VERDICTS]) for s in settings],
-        labels=[label for _, label in VERDICTS],
+        table=[(s, [counts(rows, s, f"{key}_verdict") for key in compared]) for s in settings],
+        labels=[label for _, label in VERDICTS] + (["HV vs published"] if published is not None else []),
         gaps=[median_gap_text(rows, s) for s in settings] + [median_gap_text(rows)] if has_bounds(rows) else (),
         title=f"parley campaign {campaign} ({case.name})",
         description=text.split("\n\n")[1] if "\n\n" in text else "",
