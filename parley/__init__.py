@@ -25,34 +25,16 @@ neither stormpy nor matplotlib, and changes no global state.
 """
 
 from parley_core import __version__
-from parley_core.api import (
-    Campaign,
-    CampaignReport,
-    Optimality,
-    Run,
-    Selection,
-    Summary,
-    augment,
-    baseline,
-    campaign_bounds,
-    campaign_report,
-    case_studies,
-    evaluate,
-    exact,
-    experiment,
-    load,
-    run,
-    synthesize,
-)
+from parley_core.api import *  # noqa: F403  (the library API: every name of parley_core.api.__all__)
+from parley_core.api import __all__ as _api
 from parley_core.constraints import Constraint
 from parley_core.errors import ModelError, OptionError, OutputError, ParleyDefect, ParleyError, PolicyError, SearchError
 from parley_core.model import Front, Objective, Policy, Valued
 from parley_core.urc import URC
 
 __all__ = [
+    *_api,
     "URC",
-    "Campaign",
-    "CampaignReport",
     "Constraint",
     "Front",
     "ModelError",
@@ -63,22 +45,7 @@ __all__ = [
     "ParleyError",
     "Policy",
     "PolicyError",
-    "Optimality",
-    "Run",
     "SearchError",
-    "Selection",
-    "Summary",
     "Valued",
     "__version__",
-    "augment",
-    "baseline",
-    "campaign_bounds",
-    "campaign_report",
-    "case_studies",
-    "evaluate",
-    "exact",
-    "experiment",
-    "load",
-    "run",
-    "synthesize",
 ]
