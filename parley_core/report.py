@@ -245,6 +245,8 @@ PLOT_ERROR = "policy-plot-error.txt"
 """Written instead of policy.png when a plugin's ``plot_policy`` raises."""
 REPORT_ERROR = "report-error.txt"
 """Written instead of report.html when the interactive page cannot be made."""
+MAP_ERROR = "map-error.txt"
+"""Written instead of map.json when a plugin's ``policy_map`` raises (report.html then has no map)."""
 
 
 def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path]:
@@ -296,7 +298,7 @@ def _policy_map(case, result: RunResult, staging: Path) -> None:
         found = case.policy_map(result.prepared.system)
         (staging / "map.json").write_text(json.dumps(found.to_json(), indent=1) + "\n")
     except Exception as exc:
-        (staging / REPORT_ERROR).write_text(
+        (staging / MAP_ERROR).write_text(
             f"the {case.name} plugin's policy_map failed, so report.html has no map:\n"
             + "".join(traceback.format_exception(exc))
         )

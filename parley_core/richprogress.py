@@ -77,7 +77,7 @@ class RichReporter:
 def reporting(progress: bool | Reporter) -> AbstractContextManager[Reporter]:
     """The reporter of ``progress``: rich bars on stderr (True), none (False), or the caller's."""
     if progress is True:
-        return RichReporter(Console(stderr=True))
+        return RichReporter(stderr())
     if progress is False or progress is None:
         return nullcontext(NullReporter())
     return nullcontext(progress)

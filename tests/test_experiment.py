@@ -92,7 +92,7 @@ def test_report_on_fronts_with_known_hypervolumes():
     assert by["better"].baseline_hv == pytest.approx(2.0)
     assert by["better"].hv[0] == pytest.approx(3.0)
     assert (by["better"].hv_verdict, by["worse"].hv_verdict) == ("better", "worse")
-    assert report.counts(rows, (0.7, 80.0), "hv_verdict") == (1, 1, 0)
+    assert table2.counts(rows, (0.7, 80.0), "hv_verdict") == (1, 1, 0)
     # the paper's spread: 1.5 for a single point, the diagonal of the unit square for two
     assert by["better"].baseline_gap == 1.5 and by["better"].gap[0] == pytest.approx(2**0.5)
     assert (by["better"].gap_verdict, by["worse"].gap_verdict) == ("better", "same")

@@ -52,10 +52,19 @@ class CampaignReport:
         return self.directory / "report.html"
 
     def _repr_html_(self) -> str:
-        import html
+        from parley_core.interactive import inline
 
-        text = self.page.read_text(encoding="utf-8")
-        return f'<iframe srcdoc="{html.escape(text, quote=True)}" style="width:100%;height:900px;border:0"></iframe>'
+        return inline(self.page.read_text(encoding="utf-8"), 900)
+
+
+def existing_store(store: str | Path) -> Path:
+    """A campaign store that exists (reading one must not create an empty store)."""
+    from parley_core.errors import OptionError
+
+    path = Path(store)
+    if not path.is_file():
+        raise OptionError(f"store {store} does not exist; give the file of `parley experiment run --store`")
+    return path
 
 
 def campaign_bounds(
@@ -70,13 +79,10 @@ def campaign_bounds(
     """``parley experiment bound``: each instance's certified outer bound, computed once and
     stored (instances that have one are skipped unless ``again``); the number computed now.
     The campaign report then gives the median gap to the bound per requirement setting."""
-    from parley_core.errors import OptionError
     from parley_core.experiment import bounds
     from parley_core.experiment.store import Store
 
-    if not Path(store).is_file():
-        raise OptionError(f"store {store} does not exist; give the file of `parley experiment run --store`")
-    with Store(Path(store)) as results, reporting(progress) as reporter:
+    with Store(existing_store(store)) as results, reporting(progress) as reporter:
         chosen, case_name, _settings = results.campaign(name)
         tasks = bounds.plan(results, chosen, case_name, method, again)
         reporter.stage(f"bounds of {chosen}", len(tasks))
@@ -102,9 +108,7 @@ def campaign_report(
     from parley_core.plugins import load_registry
     from parley_core.report import check_output
 
-    store, out = Path(store), Path(out)
-    if not store.is_file():
-        raise OptionError(f"store {store} does not exist; give the file of `parley experiment run --store`")
+    store, out = existing_store(store), Path(out)
     if published is not None and not Path(published).is_dir():
         raise OptionError(f"--published {published} is not a directory")
     check_output(out, force)

@@ -12,7 +12,7 @@ from typing import Any
 from parley_core.api.commands import assignments_of, decision_specs, prepare_case
 from parley_core.casestudy import CaseStudy
 from parley_core.evaluate import EvaluatorKind
-from parley_core.model import Policy, Valued
+from parley_core.model import Family, Policy, Valued
 from parley_core.progress import Reporter
 from parley_core.richprogress import reporting
 
@@ -85,6 +85,25 @@ def baseline(
             return evaluate_policies(family, family.baseline_policies(), storm, reporter, stage="baselines (Storm)")
 
 
+def check_format(format: str) -> None:
+    """Refuse an export format other than prism, evochecker or paynt (before any model is read)."""
+    from parley_core.errors import OptionError
+    from parley_core.prism.writer import FORMATS
+
+    if format not in FORMATS:
+        raise OptionError(f"unknown --format {format!r}; valid: {', '.join(FORMATS)}")
+
+
+def augmented_family(
+    model: str | Path, decisions: Mapping[str, tuple[int, int] | str] | Sequence[str], observe: Sequence[str] = ()
+) -> Family:
+    """A PRISM DTMC's family, kept to the observation valuations that consult a service."""
+    from parley_core.pipeline import make_family
+    from parley_core.usermodel import system_from_file
+
+    return make_family(system_from_file(Path(model), decision_specs(decisions), list(observe)), prune=True)
+
+
 def augment(
     model: str | Path,
     *,
@@ -95,12 +114,6 @@ def augment(
     """The parametric model of a PRISM DTMC: one decision constant per service and
     reachable observation valuation (``format``: prism, evochecker or paynt)."""
     from parley_core.augment import export
-    from parley_core.errors import OptionError
-    from parley_core.pipeline import make_family
-    from parley_core.prism.writer import FORMATS
-    from parley_core.usermodel import system_from_file
 
-    if format not in FORMATS:
-        raise OptionError(f"unknown --format {format!r}; valid: {', '.join(FORMATS)}")
-    system = system_from_file(Path(model), decision_specs(decisions), list(observe))
-    return export(make_family(system, prune=True), format)
+    check_format(format)
+    return export(augmented_family(model, decisions, observe), format)

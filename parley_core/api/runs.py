@@ -136,12 +136,9 @@ class Page:
         return render(self.run)
 
     def _repr_html_(self) -> str:
-        import html
+        from parley_core.interactive import inline
 
-        return (
-            f'<iframe srcdoc="{html.escape(self.html(), quote=True)}" '
-            f'style="width:100%;height:{self.height}px;border:0"></iframe>'
-        )
+        return inline(self.html(), self.height)
 
 
 @frozen(kw_only=True)

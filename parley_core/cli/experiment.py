@@ -107,11 +107,6 @@ def experiment_run(
         raise typer.Exit(1)
 
 
-def _existing(store: Path) -> None:
-    if not store.is_file():
-        raise OptionError(f"store {store} does not exist; give the file of `parley experiment run --store`")
-
-
 @experiment_app.command("verify")
 @user_errors
 def experiment_verify(
@@ -128,10 +123,11 @@ def experiment_verify(
     ] = None,
 ) -> None:
     """Re-check with Storm every stored front not yet checked (runs of --no-verify); resumable."""
+    from parley_core.api.campaigns import existing_store
     from parley_core.experiment.campaign import verify_stored
     from parley_core.experiment.store import Store
 
-    _existing(store)
+    existing_store(store)
     wanted = set(repetition) if repetition else None
     with Store(store) as results:
         campaign, case_name, _settings = results.campaign(name)
@@ -170,7 +166,6 @@ def experiment_bound(
     median gap to the bound per requirement setting."""
     from parley_core.api.campaigns import campaign_bounds
 
-    _existing(store)
     stored = campaign_bounds(store, name=name, method=method, again=again, workers=workers)
     Console().print(f"{stored} instance bounds computed and stored in {store}")
 
@@ -201,7 +196,6 @@ def experiment_report(
     """Report a campaign: Table 2 (per setting: better/worse/same than the baseline), box plots, CSV."""
     from parley_core.api.campaigns import campaign_report
 
-    _existing(store)
     made = campaign_report(
         store,
         out,

@@ -39,7 +39,6 @@ from parley_core.cli.options import (
 )
 from parley_core.errors import OptionError
 from parley_core.evaluate import EvaluatorKind
-from parley_core.prism.writer import FORMATS
 
 
 @app.command("run")
@@ -201,7 +200,7 @@ def synthesize_command(
 def _synthesize(make, warm_start: Path | None = None) -> None:
     """Make a run with ``make(reporter)`` (the API's ``run``, ``exact`` or ``synthesize``)
     under progress bars, then print it."""
-    from parley_core.report import PLOT_ERROR, REPORT_ERROR, summary
+    from parley_core.report import MAP_ERROR, PLOT_ERROR, REPORT_ERROR, summary
     from parley_core.verify import TOLERANCE, Verified
 
     console = Console()
@@ -210,7 +209,11 @@ def _synthesize(make, warm_start: Path | None = None) -> None:
     out = made.directory
     result = made.result
     assert result is not None  # made in this process
-    for missing, what in ((PLOT_ERROR, "the policy plot"), (REPORT_ERROR, "report.html")):
+    for missing, what in (
+        (PLOT_ERROR, "the policy plot"),
+        (MAP_ERROR, "the plugin's map"),
+        (REPORT_ERROR, "report.html"),
+    ):
         if (out / missing).is_file():
             console.print(
                 f"[yellow]warning:[/] {what} failed; the run is complete without it ({out / missing} says why)"
@@ -302,20 +305,17 @@ def augment_command(
     force: Annotated[bool, typer.Option(help="Replace an existing --out file.")] = False,
 ) -> None:
     """Write the parametric model: one decision constant per service and reachable observation valuation."""
+    from parley_core.api.evaluation import augmented_family, check_format
     from parley_core.augment import export
-    from parley_core.pipeline import make_family
-    from parley_core.usermodel import system_from_file
 
-    if format_ not in FORMATS:
-        raise OptionError(f"unknown --format {format_!r}; valid: {', '.join(FORMATS)}")
+    check_format(format_)
     if out is not None and out.exists() and not force:
         raise OptionError(f"output {out} exists; choose another --out or add --force")
-    system = system_from_file(model, decision, observe or [])
-    family = make_family(system, prune=True)
+    family = augmented_family(model, decision, observe or [])
     text = export(family, format_)
     total = len(family.valuations) + len(family.left_out)
     print(
-        f"{len(family.valuations)} of {total} observation valuations of ({', '.join(system.observation)}) "
+        f"{len(family.valuations)} of {total} observation valuations of ({', '.join(family.observation)}) "
         f"consult a service in some reachable state; {len(family.left_out)} left out; "
         f"{len(family.decisions)} decision constants",
         file=sys.stderr,

@@ -34,7 +34,7 @@ from parley_core.errors import OptionError
 from parley_core.experiment import bounds as instance_bounds
 from parley_core.experiment.stats import compare
 from parley_core.experiment.store import RunRecord
-from parley_core.experiment.table2 import VERDICTS, counts, has_bounds, median_gap_text, rows_csv, table2_document
+from parley_core.experiment.table2 import rows_csv, table2_cells, table2_document
 from parley_core.model import Direction
 from parley_core.plotting import figure, save
 
@@ -249,14 +249,11 @@ def write_report(
     figures = box_plots(rows, figure_setting, caption, out / "gains")
     from parley_core.interactive import campaign_page
 
-    compared = [key for key, _ in VERDICTS] + (["published"] if published is not None else [])
     page = campaign_page.render(
         rows,
         settings,
         header,
-        table=[(s, [counts(rows, s, f"{key}_verdict") for key in compared]) for s in settings],
-        labels=[label for _, label in VERDICTS] + (["HV vs published"] if published is not None else []),
-        gaps=[median_gap_text(rows, s) for s in settings] + [median_gap_text(rows)] if has_bounds(rows) else (),
+        table=table2_cells(rows, settings, header, published is not None),
         title=f"parley campaign {campaign} ({case.name})",
         description=text.split("\n\n")[1] if "\n\n" in text else "",
         chosen=figure_setting,

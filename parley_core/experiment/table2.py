@@ -45,37 +45,49 @@ def has_bounds(rows: Sequence[Row]) -> bool:
     return bool(bound_gaps(rows))
 
 
-def table2_markdown(rows: Sequence[Row], settings: Sequence[Setting], names: Sequence[str], published: bool) -> str:
-    out = io.StringIO()
+def table2_cells(
+    rows: Sequence[Row], settings: Sequence[Setting], names: Sequence[str], published: bool
+) -> tuple[list[str], list[list[str]]]:
+    """Table 2 as cells: the header, then one line per setting and the total line (its
+    setting cells empty but the first, "all"). table2.md and report.html draw these."""
     bounded = has_bounds(rows)
-    head = f"| {' | '.join(names)} |" + "".join(f" {label} better/worse/same |" for _, label in VERDICTS)
+    head = [*names, *(f"{label} better/worse/same" for _, label in VERDICTS)]
     if published:
-        head += " HV vs published better/worse/same | median HV >= published |"
+        head += ["HV vs published better/worse/same", "median HV >= published"]
     if bounded:
-        head += " median gap to the bound |"
-    out.write(head + "\n|" + "---|" * (head.count("|") - 1) + "\n")
+        head.append("median gap to the bound")
     groups = len(VERDICTS) + (1 if published else 0)
     totals = np.zeros((groups, 3), dtype=int)
+    lines = []
     for setting in settings:
         found = [counts(rows, setting, f"{key}_verdict") for key, _ in VERDICTS]
         if published:
             found.append(counts(rows, setting, "published_verdict"))
         totals += np.array(found, dtype=int)
-        line = f"| {' | '.join(f'{b:g}' for b in setting)} |" + "".join(f" {'/'.join(map(str, c))} |" for c in found)
+        line = [f"{b:g}" for b in setting] + ["/".join(map(str, c)) for c in found]
         if published:
             selected = [r for r in rows if r.setting == setting and r.published_hv]
             at_least = sum(np.median(r.hv) >= np.median(r.published_hv) for r in selected)
-            line += f" {at_least}/{len(selected)} |"
+            line.append(f"{at_least}/{len(selected)}")
         if bounded:
-            line += f" {median_gap_text(rows, setting)} |"
-        out.write(line + "\n")
-    total = "| all |" + " |" * (len(names) - 1) + "".join(f" {'/'.join(map(str, t))} |" for t in totals)
+            line.append(median_gap_text(rows, setting))
+        lines.append(line)
+    total = ["all"] + [""] * (len(names) - 1) + ["/".join(map(str, t)) for t in totals]
     if published:
-        total += " |"
+        total.append("")
     if bounded:
-        total += f" {median_gap_text(rows)} |"
-    out.write(total + "\n")
-    return out.getvalue()
+        total.append(median_gap_text(rows))
+    lines.append(total)
+    return head, lines
+
+
+def table2_markdown(rows: Sequence[Row], settings: Sequence[Setting], names: Sequence[str], published: bool) -> str:
+    head, lines = table2_cells(rows, settings, names, published)
+
+    def markdown(cells: Sequence[str]) -> str:
+        return "|" + "".join(f" {c} |" if c else " |" for c in cells) + "\n"
+
+    return markdown(head) + "|" + "---|" * len(head) + "\n" + "".join(markdown(line) for line in lines)
 
 
 def table2_document(

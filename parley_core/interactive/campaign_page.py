@@ -48,38 +48,17 @@ def boxes(rows: Sequence[Row], setting: Setting, key: str, base: str) -> dict[st
     return columns
 
 
-def table2_html(
-    table: Sequence[tuple[Setting, Sequence[tuple[int, int, int]]]],
-    header: Sequence[str],
-    labels: Sequence[str],
-    gaps: Sequence[str] = (),
-) -> str:
-    """Table 2 as an HTML table: per setting, better/worse/same per comparison (``labels``),
-    the median gap to the bound (``gaps``: one text per setting and the total's, if any),
-    and the total."""
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
-    head += "".join(f"<th>{label} better/worse/same</th>" for label in labels)
-    if gaps:
-        head += "<th>median gap to the bound</th>"
-    lines = []
-    totals = np.zeros((len(labels), 3), dtype=int)
-    for k, (setting, counted) in enumerate(table):
-        found = np.array(counted, dtype=int)
-        totals += found
-        cells = "".join(f"<td>{b:g}</td>" for b in setting)
-        cells += "".join(f"<td>{'/'.join(map(str, c))}</td>" for c in found)
-        if gaps:
-            cells += f"<td>{html.escape(gaps[k])}</td>"
-        lines.append(f"<tr>{cells}</tr>")
-    total = f"<td colspan='{len(header)}'><b>all</b></td>" + "".join(
-        f"<td><b>{'/'.join(map(str, t))}</b></td>" for t in totals
-    )
-    if gaps:
-        total += f"<td><b>{html.escape(gaps[-1])}</b></td>"
-    lines.append(f"<tr>{total}</tr>")
+def table2_html(head: Sequence[str], lines: Sequence[Sequence[str]]) -> str:
+    """Table 2 as an HTML table, from :func:`parley_core.experiment.table2.table2_cells`
+    (the last line, the total, in bold)."""
+    header = "".join(f"<th>{html.escape(h)}</th>" for h in head)
+    body = []
+    for k, line in enumerate(lines):
+        wrap = ("<b>", "</b>") if k == len(lines) - 1 else ("", "")
+        body.append("<tr>" + "".join(f"<td>{wrap[0]}{html.escape(c)}{wrap[1]}</td>" for c in line) + "</tr>")
     return (
         "<table class='table2' border='1' cellpadding='4' style='border-collapse:collapse'>"
-        f"<thead><tr>{head}</tr></thead><tbody>{''.join(lines)}</tbody></table>"
+        f"<thead><tr>{header}</tr></thead><tbody>{''.join(body)}</tbody></table>"
     )
 
 
@@ -88,9 +67,7 @@ def render(
     settings: Sequence[Setting],
     header: Sequence[str],
     *,
-    table: Sequence[tuple[Setting, Sequence[tuple[int, int, int]]]],
-    labels: Sequence[str],
-    gaps: Sequence[str] = (),
+    table: tuple[Sequence[str], Sequence[Sequence[str]]],
     title: str,
     description: str,
     chosen: Setting,
@@ -148,8 +125,7 @@ def render(
         ),
     )
     header_div = Div(
-        text=f"<h2>{html.escape(title)}</h2><p>{html.escape(description)}</p>"
-        + table2_html(table, header, labels, gaps),
+        text=f"<h2>{html.escape(title)}</h2><p>{html.escape(description)}</p>" + table2_html(*table),
         width=1000,
         name="table2",
     )
