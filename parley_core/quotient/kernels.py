@@ -330,13 +330,16 @@ def cumulative(count, indptr, cols, vals, steps, rewards, levels):
     in the first ``steps`` steps (the distribution pushed one step at a time, once for all
     reward structures), weighed by its reward.
 
-    Step j only scans the states within j steps of the initial one (a prefix of the
-    breadth-first order ``levels`` comes from) and only pushes the ones that carry
-    probability and can still earn a reward: states with no reward and no successor but
-    themselves and such states (crashed or finished robots) are dropped with their mass,
-    found in one pass from the last state to the first. On robot_grid this touches a
-    quarter of the rows of the backward iteration (x = reward + P x, ``steps`` times), as
-    the mass sits in one phase of the turn at each step."""
+    While few states carry probability at a step, the step visits only those, from a list
+    in the order they were reached: on web_ids about 17 of 1,600 states a step, as the hour
+    and the phase of the round are part of the state, on tas about 100 of 1,100 (7 and 2
+    times faster than a scan). Once more than an eighth of all states, and a third of those
+    within j steps of the initial one, carry probability at step j (robot_grid, turtlebot:
+    after a few steps), each later step scans the states within its number of steps of the
+    initial one (a prefix of the breadth-first order ``levels`` comes from), which is
+    cheaper when most of them carry probability. States with no reward and no successor but
+    themselves and such states (crashed or finished robots) are dropped
+    with their mass, found in one pass from the last state to the first."""
     n_rewards = rewards.shape[0]
     earns = np.zeros(count, dtype=np.bool_)
     for r in range(n_rewards):
@@ -347,9 +350,43 @@ def cumulative(count, indptr, cols, vals, steps, rewards, levels):
     mass = np.zeros(count)
     pushed = np.zeros(count)
     visits = np.zeros(count)  # expected visits within the bound; the rewards are weighed at the end
+    active = np.empty(count, dtype=np.int64)
+    following = np.empty(count, dtype=np.int64)
+    listed = np.zeros(count, dtype=np.bool_)
     mass[0] = 1.0
+    active[0] = 0
+    n_active = 1
     limit = 1
-    for j in range(steps):
+    j = 0
+    while j < steps:  # sparse steps: from the list
+        while limit < count and levels[limit] <= j:
+            limit += 1
+        if n_active > max(64, count // 8) and 3 * n_active > limit:
+            break
+        last = j + 1 == steps
+        n_next = 0
+        for i in range(n_active):
+            s = active[i]
+            m = mass[s]
+            mass[s] = 0.0
+            if m == 0.0 or idle[s]:
+                continue
+            visits[s] += m
+            if not last:
+                for e in range(indptr[s], indptr[s + 1]):
+                    t = cols[e]
+                    pushed[t] += m * vals[e]
+                    if not listed[t]:
+                        listed[t] = True
+                        following[n_next] = t
+                        n_next += 1
+        for i in range(n_next):
+            listed[following[i]] = False
+        mass, pushed = pushed, mass
+        active, following = following, active
+        n_active = n_next
+        j += 1
+    for j in range(j, steps):  # dense steps: scan the prefix of states within j steps
         while limit < count and levels[limit] <= j:
             limit += 1
         last = j + 1 == steps
