@@ -24,17 +24,26 @@ from collections.abc import Callable
 import numpy as np
 from attrs import field, frozen
 
+from parley_core.boxes import FLOOR, Box, box_rows, local_front
 from parley_core.model import Family
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 
 LEAF = 48
 """Nodes with at most this many policies are evaluated rather than split."""
+LARGEST_LEAF = 65536
+"""With ``adaptive``, a node with up to this many policies is evaluated when that costs no
+more than :data:`LEAF_COST` bounds of a node (the mean measured so far): on web_ids a
+node's bound costs as much as solving about 150 policies, and splitting rarely prunes."""
+LEAF_COST = 16.0
+"""Splitting costs at least two bounds (the children's), so a node that costs less than that
+to evaluate is evaluated."""
 CUTS = 3
 """Weighted sums tried per node before it is split."""
 BATCH = 4096
 """Policies handed to the evaluator at a time."""
-FLOOR = -1e300
+BOX_BATCH = 65536
+"""Policies of whole boxes handed to a box evaluator at a time."""
 TOLERANCE = 1e-9
 """The front is exact to this: every policy of the family is weakly dominated by a front
 value once each objective is given this much (of the value's size, at least 1)."""
@@ -127,14 +136,22 @@ def branch_and_bound(
     time_limit: float | None = None,
     progress: Callable[[float], None] | None = None,
     leaf: int = LEAF,
+    adaptive: bool = True,
     root_cuts: tuple[tuple[np.ndarray, float], ...] = (),
     bounds: RelaxedObjectives | None = None,
+    fronts: Callable[[list[Box], np.ndarray], tuple[np.ndarray, np.ndarray, int]] | None = None,
 ) -> ExactResult:
     """The family's Pareto front (see the module docstring). ``evaluate`` maps rows of decision
     values to objective values; ``seeds`` (rows, values) start the archive; ``progress``
     receives the fraction of the family resolved so far (pruned or evaluated), or of the time
     limit used if that is more; ``root_cuts`` are half-spaces (weights, level; sign space) every
-    policy is known to satisfy; ``bounds`` the family's relaxed objectives, if already built."""
+    policy is known to satisfy; ``bounds`` the family's relaxed objectives, if already built;
+    ``adaptive`` raises ``leaf`` to what costs :data:`LEAF_COST` bounds to evaluate (measured
+    as the search goes: which nodes are split then depends on timing, the front's values do
+    not); ``fronts`` evaluates whole boxes given the sign space and returns only each box's own
+    non-dominated (rows, values) and the number evaluated
+    (:meth:`~parley_core.evaluate.quotient.QuotientEvaluator.box_fronts`), else ``evaluate``
+    gets every row."""
     start = time.perf_counter()
     bounds = bounds or RelaxedObjectives(family, quotient)
     signs = bounds.signs
@@ -144,6 +161,17 @@ def branch_and_bound(
     kept_values: list[np.ndarray] = []
 
     def admit(rows: np.ndarray, values: np.ndarray) -> None:
+        # what the archive would reject anyway is dropped in bulk: what the batch itself or
+        # the archive weakly dominates (the archive keeps the first of equal values)
+        keep = local_front(values, signs)
+        rows, values = rows[keep], values[keep]
+        if len(archive.points) and len(values):
+            points = np.maximum(values * signs, FLOOR)
+            covered = np.zeros(len(points), dtype=bool)
+            for lo in range(0, len(points), 256):
+                part = points[lo : lo + 256]
+                covered[lo : lo + 256] = (archive.points[None, :, :] >= part[:, None, :]).all(axis=2).any(axis=1)
+            rows, values = rows[~covered], values[~covered]
         for row, value in zip(rows, values):
             if archive.add(value * signs):
                 kept_rows.append(row)
@@ -157,20 +185,43 @@ def branch_and_bound(
     stack: list[tuple[float, int, Node]] = [(0.0, 0, root)]
     scale = np.ones(len(signs))
     counter = itertools.count(1)
-    pending: list[np.ndarray] = []
+    pending: list[Box] = []
     nodes = pruned = evaluated = unknown = 0
     stopped_by = "complete"
+
+    spent = {"bound": 0.0, "bounds": 0, "policy": 0.0, "policies": 0}
+
+    def leaf_size() -> int:
+        if not adaptive or not spent["policies"] or not spent["bounds"]:
+            return leaf
+        per_bound = spent["bound"] / spent["bounds"]
+        per_policy = max(spent["policy"] / spent["policies"], 1e-9)
+        return max(leaf, min(LARGEST_LEAF, int(LEAF_COST * per_bound / per_policy)))
 
     def flush() -> None:
         nonlocal evaluated, unknown
         if not pending:
             return
-        rows = np.vstack(pending)
+        began = time.perf_counter()
+        if fronts is not None:
+            rows, values, count = fronts(list(pending), signs)
+            values = np.asarray(values, dtype=float).reshape(len(rows), len(signs))
+        else:
+            rows = np.vstack([box_rows(box, domains) for box in pending])
+            values = np.asarray(evaluate(rows), dtype=float).reshape(len(rows), len(signs))
+            count = len(rows)
         pending.clear()
-        values = np.asarray(evaluate(rows), dtype=float).reshape(len(rows), len(signs))
-        evaluated += len(rows)
+        spent["policy"] += time.perf_counter() - began
+        spent["policies"] += count
+        evaluated += count
         unknown += int(np.isnan(values).any(axis=1).sum())
         admit(rows, values)
+
+    def queue(lo: np.ndarray, hi: np.ndarray) -> None:
+        pending.append(Box(lo, hi))
+        # the first box goes at once: its time is what the adaptive leaf size is measured by
+        if not spent["policies"] or sum(box.size for box in pending) >= (BATCH if fronts is None else BOX_BATCH):
+            flush()
 
     def resolve(share: int) -> None:
         nonlocal resolved
@@ -195,13 +246,11 @@ def branch_and_bound(
         lo, hi = node.lo.copy(), node.hi.copy()
         hi[~consulted] = lo[~consulted]
         width = hi - lo + 1
-        if math.prod(int(w) for w in width) <= leaf:
-            for digits in itertools.product(*(range(a, b + 1) for a, b in zip(lo, hi))):
-                pending.append(np.array([domains[d][x] for d, x in enumerate(digits)], dtype=np.int64))
-            if len(pending) >= BATCH:
-                flush()
+        if math.prod(int(w) for w in width) <= leaf_size():
+            queue(lo, hi)
             resolve(share)
             continue
+        began = time.perf_counter()
         ideal = np.maximum(bounds.ideal(view), FLOOR)
         if node.ideal is not None:
             ideal = np.minimum(ideal, node.ideal)
@@ -221,6 +270,8 @@ def branch_and_bound(
             weights /= weights.max()
             cuts.append((weights, float(bounds.weighted(view, weights)[0])))
             corners = archive.open_corners(ideal, cuts)
+        spent["bound"] += time.perf_counter() - began
+        spent["bounds"] += 1
         if not len(corners):
             pruned += 1
             resolve(share)

@@ -384,6 +384,7 @@ def _refine(family: Family, engine: Evaluator, result: SearchResult, seconds: fl
         progress=progress,
         root_cuts=found.cuts,
         bounds=bounds,
+        fronts=getattr(engine, "box_fronts", None),
     )
 
 

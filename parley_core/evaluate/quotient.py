@@ -15,6 +15,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from parley_core.boxes import Box, box_rows, local_front
 from parley_core.evaluate.pool import default_workers, spawn_pool, stop_pool
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.model import Family
@@ -48,6 +49,42 @@ def _worker_solve(rows: np.ndarray, n_objectives: int) -> tuple[np.ndarray, np.n
     before = solver.direct_solves
     values, consulted = _solve_rows(solver, rows, n_objectives)
     return values, consulted, solver.direct_solves - before
+
+
+def _box_fronts(solver: QuotientSolver, boxes: list[Box], domains, signs, n_objectives: int):
+    """Each box's policies solved and cut to the box's own front (:func:`.local_front`):
+    (rows, values) of the fronts, in box order, and the rows whose values the quotient could
+    not certify (for Storm), the policies solved and the direct solves."""
+    before = solver.direct_solves
+    rows_out, values_out, unsure, solved = [], [], [], 0
+    for box in boxes:
+        rows = box_rows(box, domains)
+        values, _ = _solve_rows(solver, rows, n_objectives)
+        solved += len(rows)
+        keep = local_front(values, signs)
+        rows_out.append(rows[keep])
+        values_out.append(values[keep])
+        unsure.append(rows[np.isnan(values).any(axis=1)])
+    width = len(domains)
+    return (
+        np.vstack([np.zeros((0, width), dtype=np.int64), *rows_out]),
+        np.vstack([np.zeros((0, n_objectives)), *values_out]),
+        np.vstack([np.zeros((0, width), dtype=np.int64), *unsure]),
+        solved,
+        solver.direct_solves - before,
+    )
+
+
+def _worker_box_fronts(boxes: list[Box], domains, signs, n_objectives: int):
+    return _box_fronts(_SOLVER[0], boxes, domains, signs, n_objectives)
+
+
+def _offsets(boxes: list[Box]):
+    """(first row, box) of each box in the rows of all of them."""
+    start = 0
+    for box in boxes:
+        yield start, box
+        start += box.size
 
 
 class QuotientEvaluator:
@@ -119,6 +156,40 @@ class QuotientEvaluator:
             self.uncertified += len(uncertain)
             values[uncertain] = self._storm_values(policies[uncertain])
         return values, consulted
+
+    def box_fronts(self, boxes: list[Box], signs: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """The policies of ``boxes`` evaluated where they are solved, each box cut to its own
+        non-dominated values in sign space ``signs`` (1 maximised, -1 minimised): (rows,
+        values) in box order and the number of policies evaluated. What branch and bound
+        needs of a box, without carrying every value of it between processes. Values the
+        quotient cannot give (an objective it leaves to Storm, an uncertified solve) are
+        Storm's, as in :meth:`evaluate`."""
+        domains = [np.array(d.service.values, dtype=np.int64) for d in self.family.decisions]
+        n_objectives = len(self.family.objectives)
+        if self.fallback:  # Storm's objectives: every policy's values are needed here
+            rows = np.vstack([box_rows(b, domains) for b in boxes])
+            values = self.evaluate(rows)
+            keep = np.concatenate([o + local_front(values[o : o + b.size], signs) for o, b in _offsets(boxes)])
+            return rows[keep], values[keep], len(rows)
+        if self.workers > 1 and sum(b.size for b in boxes) >= 64:
+            pool = self._executor()
+            shares: list[list[Box]] = [[] for _ in range(self.workers * 2)]
+            for i, box in enumerate(boxes):  # contiguous shares keep the boxes in order
+                shares[i * len(shares) // len(boxes)].append(box)
+            futures = [
+                pool.submit(_worker_box_fronts, share, domains, signs, n_objectives) for share in shares if share
+            ]
+            parts = [f.result() for f in futures]
+        else:
+            parts = [_box_fronts(self.solver, boxes, domains, signs, n_objectives)]
+        self.direct_solves += sum(p[4] for p in parts)
+        rows = np.vstack([p[0] for p in parts])
+        values = np.vstack([p[1] for p in parts])
+        unsure = np.vstack([p[2] for p in parts])
+        if len(unsure):  # Storm values the policies the quotient could not certify
+            self.uncertified += len(unsure)
+            rows, values = np.vstack([rows, unsure]), np.vstack([values, self._storm_values(unsure)])
+        return rows, values, sum(p[3] for p in parts)
 
     def _storm_values(self, policies: np.ndarray) -> np.ndarray:
         if self._storm is None:

@@ -386,10 +386,10 @@ def cumulative(count, indptr, cols, vals, steps, rewards, levels):
         active, following = following, active
         n_active = n_next
         j += 1
-    for j in range(j, steps):  # dense steps: scan the prefix of states within j steps
-        while limit < count and levels[limit] <= j:
+    for k in range(j, steps):  # dense steps: scan the prefix of states within k steps
+        while limit < count and levels[limit] <= k:
             limit += 1
-        last = j + 1 == steps
+        last = k + 1 == steps
         for s in range(limit):
             m = mass[s]
             if m == 0.0:
