@@ -14,7 +14,12 @@ Three tables, printed as Markdown:
    table 1, over ``--seeds`` seeds: the fraction of the exact hypervolume reached (same
    reference point), min / median / max.
 
+Between 1 and 2, ``parley exact`` on web_ids and tas with their defaults (2 workers, every
+front value Storm's), against enumerating every policy on the quotient (``--no-enumeration``
+leaves that out: about 100 s for web_ids and 5 minutes for tas).
+
 Usage: python benchmarks/optimality.py [--seeds 10] [--bound-time 60] [--skip-gaps | --only-gaps]
+       [--skip-full | --only-full] [--no-enumeration] [--time-limit 600]
 """
 
 from __future__ import annotations
@@ -26,6 +31,8 @@ import time
 import numpy as np
 
 from parley_core import metrics
+from parley_core.boxes import Box
+from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.exact import branch_and_bound
 from parley_core.pipeline import Prepared, prepare, run
 from parley_core.plugins import load_registry
@@ -40,6 +47,10 @@ EXACT = [
     ("robot_grid 3x3, intervals cut to 3", "robot_grid", ["size=3", "seed=2"], 3),
     ("robot_grid 4x4, intervals cut to 3", "robot_grid", ["size=4", "seed=1"], 3),
     ("robot_grid 4x4, intervals cut to 4", "robot_grid", ["size=4", "seed=1"], 4),
+]
+FULL = [
+    ("web_ids (defaults)", "web_ids", []),
+    ("tas (defaults)", "tas", []),
 ]
 GAPS = [
     ("robot_grid (10x10)", "robot_grid", []),
@@ -80,10 +91,12 @@ def exact_table(seeds: int) -> None:
             rows = np.array(list(itertools.product(*(d.service.values for d in fam.decisions))), dtype=np.int64)
             values = evaluate(rows)
             enumeration = time.perf_counter() - start
-            directions = [o.direction for o in fam.objectives]
-            expected = np.unique(np.round(values[metrics.nondominated(values, directions)], 9), axis=0)
-            found = np.unique(np.round(result.values, 9), axis=0)
-            same = "yes" if expected.shape == found.shape and np.allclose(expected, found, rtol=1e-9) else "NO"
+            missed, foreign = metrics.front_disagreements(result.values, values, [o.direction for o in fam.objectives])
+            same = (
+                "yes"
+                if not len(missed) and not len(foreign)
+                else f"NO ({len(missed)} missed, {len(foreign)} not on it)"
+            )
             enum_text = f"{enumeration:.1f}"
         else:
             same, enum_text = "not enumerated", "-"
@@ -109,6 +122,67 @@ def exact_table(seeds: int) -> None:
         print(
             f"| {label} | {min(fractions):.5f} | {np.median(fractions):.5f} | {max(fractions):.5f} | "
             f"{int(np.median(evaluations))} |"
+        )
+
+
+def enumerated_front(prep: Prepared, workers: int) -> tuple[np.ndarray, float]:
+    """Every policy of the family solved on the quotient (in boxes over ``workers``), each
+    box cut to its own front: values that hold the family's whole front, and the seconds."""
+    fam = prep.family
+    sizes = [len(d.service.values) for d in fam.decisions]
+    signs = -np.array([o.direction.sign for o in fam.objectives])
+    # boxes: the leading decisions enumerated, the rest whole (at most 65,536 policies a box)
+    split, rest = 0, int(np.prod(sizes))
+    while split < len(sizes) and rest > 65_536:
+        rest //= sizes[split]
+        split += 1
+    boxes = []
+    for lead in itertools.product(*(range(n) for n in sizes[:split])):
+        lo = np.array([*lead, *([0] * (len(sizes) - split))], dtype=np.int64)
+        hi = np.array([*lead, *(n - 1 for n in sizes[split:])], dtype=np.int64)
+        boxes.append(Box(lo, hi))
+    start = time.perf_counter()
+    kept = []
+    with QuotientEvaluator(fam, workers=workers) as engine:
+        for first in range(0, len(boxes), 16):
+            kept.append(engine.box_fronts(boxes[first : first + 16], signs)[1])
+    return np.vstack(kept), time.perf_counter() - start
+
+
+def full_table(time_limit: float, enumerate_too: bool) -> None:
+    """``parley exact`` on the case studies' default families (2 workers), against exhaustive
+    enumeration on the quotient."""
+    print()
+    print(
+        "| family | policies | parley exact (s) | exact | front (Storm) | nodes | pruned | evaluated "
+        "| enumeration (s) | same front |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for label, name, options in FULL:
+        case = load_registry().get(name)
+        prep = prepare(case, case.options(options))
+        size = int(np.prod([len(d.service.values) for d in prep.family.decisions]))
+        start = time.perf_counter()
+        result = run(prep, SearchSettings(seed=1), bound="refine", bound_time=time_limit)
+        seconds = time.perf_counter() - start
+        assert result.bound is not None
+        details = result.bound.details
+        front = np.array(result.front.values)
+        same, enum_text = "not enumerated", "-"
+        if enumerate_too:
+            values, enumeration = enumerated_front(prep, workers=2)
+            missed, foreign = metrics.front_disagreements(front, values, [o.direction for o in prep.family.objectives])
+            same = (
+                "yes"
+                if not len(missed) and not len(foreign)
+                else f"NO ({len(missed)} missed, {len(foreign)} not on it)"
+            )
+            enum_text = f"{enumeration:.1f}"
+        print(
+            f"| {label} | {size} | {seconds:.1f} | {'yes' if result.bound.exact else 'no'} | {len(front)} | "
+            f"{details.get('nodes', '-')} | {details.get('pruned', '-')} | {details.get('evaluated', '-')} | "
+            f"{enum_text} | {same} |",
+            flush=True,
         )
 
 
@@ -145,9 +219,18 @@ def main() -> int:
     parser.add_argument("--bound-time", type=float, default=60.0)
     parser.add_argument("--skip-gaps", action="store_true")
     parser.add_argument("--only-gaps", action="store_true")
+    parser.add_argument("--skip-full", action="store_true", help="leave out parley exact on web_ids and tas")
+    parser.add_argument("--only-full", action="store_true")
+    parser.add_argument("--no-enumeration", action="store_true", help="do not enumerate the full families")
+    parser.add_argument("--time-limit", type=float, default=600.0, help="parley exact's limit on the full families")
     args = parser.parse_args()
+    if args.only_full:
+        full_table(args.time_limit, not args.no_enumeration)
+        return 0
     if not args.only_gaps:
         exact_table(args.seeds)
+    if not args.only_gaps and not args.skip_full:
+        full_table(args.time_limit, not args.no_enumeration)
     if not args.skip_gaps:
         gap_table(args.bound_time)
     return 0

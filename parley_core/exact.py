@@ -8,7 +8,12 @@ Lacour and Vanderpooten 2015): the corners u whose open orthants ``{v > u}`` mak
 the points no archived value weakly dominates. A node none of whose region reaches beyond a
 corner holds no policy with a new value, and is pruned. A node whose decisions leave at most
 ``leaf`` policies (decisions no reached state consults collapse to one value) is evaluated
-policy by policy. When no node is left, the archive's non-dominated values are the whole
+policy by policy; with ``adaptive``, ``leaf`` grows to what costs as much to evaluate as a
+few bounds (both times measured as the search goes), because where fronts are dense
+(web_ids, tas) splitting rarely prunes. Evaluated nodes go to the evaluator as whole boxes
+where it can take them (:meth:`~parley_core.evaluate.quotient.QuotientEvaluator.box_fronts`:
+each box enumerated where it is solved and cut to its own front, so only a few rows a box
+travel between processes). When no node is left, the archive's non-dominated values are the whole
 Pareto front (as a set of values); with a time limit the open nodes' ideal points join the
 front in the bound.
 """

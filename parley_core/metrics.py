@@ -154,3 +154,39 @@ def knee(values: np.ndarray, directions: Sequence[Direction]) -> int:
     span = points.max(axis=0) - points.min(axis=0)
     norm = (points - points.min(axis=0)) / np.where(span > 0, span, 1.0)
     return int(np.argmin(np.linalg.norm(norm, axis=1)))
+
+
+def front_disagreements(
+    found: np.ndarray, values: np.ndarray, directions: Sequence[Direction], tolerance: float = 1e-9
+) -> tuple[np.ndarray, np.ndarray]:
+    """How ``found`` fails to be the Pareto front of ``values`` up to ties within
+    ``tolerance`` (of each value's size, at least 1): the values no found value weakly
+    dominates once given the tolerance, and the found values that are not (to the tolerance)
+    one of the float-exact front's. Both empty: the same front, as branch and bound promises
+    it. Counting the points of two fronts instead counts ties at the level of float noise (a
+    probability of 1.0000000000000036 beside 1.0), which one side may keep and the other drop.
+    NaN rows of ``values`` are left out."""
+    values = np.asarray(values, dtype=float)
+    found = np.asarray(found, dtype=float).reshape(-1, values.shape[1])
+    values = values[~np.isnan(values).any(axis=1)]
+    exact = values[nondominated(values, directions)]
+    signs = np.where(_maximize(directions), 1.0, -1.0)  # maximised, infinitely bad clamped
+    worst = -1e300
+    mine, theirs, best = (np.maximum(v * signs, worst) for v in (found, values, exact))
+
+    def slack(points: np.ndarray) -> np.ndarray:
+        return tolerance * np.maximum(1.0, np.abs(np.where(np.isfinite(points), points, 0.0)))
+
+    covered = np.zeros(len(theirs), dtype=bool)
+    member = np.zeros(len(mine), dtype=bool)
+    for lo in range(0, len(theirs), 1024):  # in slices: values x found can be large
+        part = theirs[lo : lo + 1024]
+        covered[lo : lo + 1024] = (mine[None, :, :] >= (part - slack(part))[:, None, :]).all(axis=2).any(axis=1)
+    with np.errstate(invalid="ignore"):  # inf - inf: equal infinities are caught by ==
+        for lo in range(0, len(mine), 1024):
+            part = mine[lo : lo + 1024]
+            near = (best[None, :, :] == part[:, None, :]) | (
+                np.abs(best[None, :, :] - part[:, None, :]) <= slack(part)[:, None, :]
+            )
+            member[lo : lo + 1024] = near.all(axis=2).any(axis=1)
+    return values[~covered], found[~member | np.isnan(found).any(axis=1)]

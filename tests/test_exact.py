@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 
 from parley_core import metrics
 from parley_core.bound import refined_bound
-from parley_core.boxes import FLOOR, Box, box_rows, local_front
+from parley_core.boxes import Box, box_rows, local_front
 from parley_core.cli import app
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.exact import Archive, branch_and_bound
@@ -46,29 +46,12 @@ def _front_set(values: np.ndarray, fam) -> np.ndarray:
     return np.unique(np.round(values[metrics.nondominated(values, directions)], 9), axis=0)
 
 
-def _assert_same_front(found: np.ndarray, values: np.ndarray, fam, tolerance: float = 1e-9) -> None:
-    """``found`` is the Pareto front of ``values`` up to ties within ``tolerance`` (of each
-    value's size, at least 1), as branch and bound promises: every value is weakly dominated
-    by a found one once given the tolerance, and every found value is (to the tolerance) one
-    of the float-exact front's. Counting the points of two fronts instead would count ties at
-    the level of float noise (a probability of 1.0000000000000036 beside 1.0), which one side
-    may keep and the other drop."""
-    directions = [o.direction for o in fam.objectives]
-    values = np.asarray(values)[~np.isnan(values).any(axis=1)]
-    exact = values[metrics.nondominated(values, directions)]
-    signs = -np.array([o.direction.sign for o in fam.objectives])  # maximised
-    found, values, exact = (np.maximum(v * signs, FLOOR) for v in (np.asarray(found), values, exact))
-    assert not np.isnan(found).any() and (len(found) or not len(values))
-    slack = tolerance * np.maximum(1.0, np.abs(np.where(np.isfinite(values), values, 0.0)))
-    covered = (found[None, :, :] >= (values - slack)[:, None, :]).all(axis=2).any(axis=1)
-    assert covered.all(), values[~covered][:5] * signs
-    slack = tolerance * np.maximum(1.0, np.abs(np.where(np.isfinite(found), found, 0.0)))
-    with np.errstate(invalid="ignore"):  # inf - inf: equal infinities are caught by ==
-        same = (exact[None, :, :] == found[:, None, :]) | (
-            np.abs(exact[None, :, :] - found[:, None, :]) <= slack[:, None, :]
-        )
-    member = same.all(axis=2).any(axis=1)
-    assert member.all(), found[~member][:5] * signs
+def _assert_same_front(found: np.ndarray, values: np.ndarray, fam) -> None:
+    """``found`` is the Pareto front of ``values`` up to ties within 1e-9, as branch and
+    bound promises (:func:`parley_core.metrics.front_disagreements`)."""
+    missed, foreign = metrics.front_disagreements(found, values, [o.direction for o in fam.objectives])
+    assert not len(missed) and not len(foreign), (missed[:5], foreign[:5])
+    assert len(found) or not len(values)
 
 
 def _enumerate(fam, evaluate) -> tuple[np.ndarray, np.ndarray]:

@@ -62,3 +62,22 @@ def test_mean_gap_is_the_papers_spread():
 def test_knee_is_closest_to_the_ideal_point():
     values = np.array([[0.6, 10.0], [0.85, 20.0], [0.9, 100.0]])
     assert metrics.knee(values, MAX_MIN) == 1
+
+
+def test_front_disagreements_ignore_noise_ties_and_catch_real_differences():
+    directions = [Direction.MIN, Direction.MAX]
+    values = np.array(
+        [[16.5, 1.0000000000000002], [63.7, 1.0000000000000036], [55.3, 1.0], [20.0, 0.5], [np.inf, 0.0], [1.0, np.nan]]
+    )
+    # the noise-level tie 63.7 may be kept or not; 55.3, 20.0 and inf are dominated
+    for found in (values[[0, 1]], values[[0]], values[[1, 0]]):
+        missed, foreign = metrics.front_disagreements(found, values, directions)
+        assert not len(missed) and not len(foreign)
+    missed, foreign = metrics.front_disagreements(values[[1]], values, directions)
+    assert missed.tolist() == [[16.5, 1.0000000000000002], [55.3, 1.0], [20.0, 0.5]] and not len(foreign)
+    missed, foreign = metrics.front_disagreements(values[[0, 2]], values, directions)
+    assert not len(missed) and foreign.tolist() == [[55.3, 1.0]]
+    # a real improvement beyond the tolerance is missed, even by a hair above it
+    better = np.vstack([values, [16.5 * (1 - 1e-8), 1.0]])
+    missed, _ = metrics.front_disagreements(values[[0]], better, directions)
+    assert len(missed) == 1
