@@ -155,9 +155,9 @@ def full_table(time_limit: float, enumerate_too: bool) -> None:
     print()
     print(
         "| family | policies | parley exact (s) | exact | front (Storm) | nodes | pruned | evaluated "
-        "| enumeration (s) | same front |"
+        "| enumeration (s) | µs a policy a core | exact / enumeration | same front |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for label, name, options in FULL:
         case = load_registry().get(name)
         prep = prepare(case, case.options(options))
@@ -168,7 +168,7 @@ def full_table(time_limit: float, enumerate_too: bool) -> None:
         assert result.bound is not None
         details = result.bound.details
         front = np.array(result.front.values)
-        same, enum_text = "not enumerated", "-"
+        same, enum_text, each, ratio = "not enumerated", "-", "-", "-"
         if enumerate_too:
             values, enumeration = enumerated_front(prep, workers=2)
             missed, foreign = metrics.front_disagreements(front, values, [o.direction for o in prep.family.objectives])
@@ -177,11 +177,12 @@ def full_table(time_limit: float, enumerate_too: bool) -> None:
                 if not len(missed) and not len(foreign)
                 else f"NO ({len(missed)} missed, {len(foreign)} not on it)"
             )
-            enum_text = f"{enumeration:.1f}"
+            enum_text, ratio = f"{enumeration:.1f}", f"{seconds / enumeration:.2f}"
+            each = f"{enumeration * 2 / size * 1e6:.0f}"
         print(
             f"| {label} | {size} | {seconds:.1f} | {'yes' if result.bound.exact else 'no'} | {len(front)} | "
             f"{details.get('nodes', '-')} | {details.get('pruned', '-')} | {details.get('evaluated', '-')} | "
-            f"{enum_text} | {same} |",
+            f"{enum_text} | {each} | {ratio} | {same} |",
             flush=True,
         )
 

@@ -15,6 +15,9 @@ from parley_core.augment import augment
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.model import DecisionKind, Objective, Service
+from parley_core.quotient.coloring import build_quotient
+from parley_core.quotient.solver import QuotientSolver
+from parley_core.testing import family as case_family
 from parley_plugins.robot_grid import CASE_STUDY as ROBOT
 
 # The toy (tests/conftest.py) with an absorbing "broken" state reached from a degraded
@@ -209,3 +212,42 @@ def test_the_deadlock_label_is_each_policys_own():
     with QuotientEvaluator(family, workers=1) as fast, StormEvaluator(family, workers=1) as storm:
         assert fast.fallback == ("mixed",)  # "deadlock" inside another formula: Storm decides it
         assert fast.evaluate(policies) == pytest.approx(storm.evaluate(policies), abs=1e-9)
+
+
+def _without_lookup(solver: QuotientSolver) -> QuotientSolver:
+    """The solver testing each choice's labels, as before the lookup (kernels.choice_index)."""
+    solver.index = (np.full_like(solver.index[0], -1), *solver.index[1:])
+    return solver
+
+
+@pytest.mark.parametrize("name", ["breaking", "synchronised", "stuck", "robot_grid 3x3", "web_ids 3^6"])
+def test_looking_choices_up_keeps_the_choices_a_test_of_each_keeps(name):
+    family = {
+        "breaking": lambda: augment(breaking_system(OBJECTIVES)),
+        "synchronised": lambda: augment(
+            toy_system(
+                prism=SYNCHRONISED,
+                observation=("a",),
+                objectives=[Objective(name="load", formula='R{"b"}=? [C<=6]', direction="min")],
+            )
+        ),
+        "stuck": lambda: augment(
+            toy_system(
+                prism=STUCK,
+                observation=("x",),
+                objectives=[Objective(name="steps", formula='R{"steps"}=? [C<=5]', direction="min")],
+            )
+        ),
+        "robot_grid 3x3": lambda: case_family("robot_grid", ["size=3", "seed=2"], width=3),
+        "web_ids 3^6": lambda: case_family("web_ids", ["rounds=6"], width=3),
+    }[name]()
+    quotient = build_quotient(family)
+    fast, slow = QuotientSolver(quotient), _without_lookup(QuotientSolver(quotient))
+    rng = np.random.default_rng(5)
+    values = [d.service.values for d in family.decisions]
+    policies = np.array([[rng.choice(v) for v in values] for _ in range(60)], dtype=np.int64)
+    for policy in policies:
+        assert fast.solve(policy) == slow.solve(policy)  # bit for bit: the same choices, in order
+        assert (fast.consulted == slow.consulted).all()
+    if name in ("breaking", "robot_grid 3x3", "web_ids 3^6"):
+        assert (fast.index[0] >= 0).any(), "no state looked its choice up"

@@ -49,6 +49,7 @@ def explore(
     chosen,
     stuck,
     consulted,
+    index,
 ):
     """The reachable DTMC of ``policy``; returns (states, entries).
 
@@ -60,8 +61,11 @@ def explore(
     ``stuck`` marks the states without one, which Storm's DTMC of the policy labels "deadlock".
     ``consulted`` (False everywhere on entry) gets True for each decision a reachable state's
     consistency test reads: a policy that agrees with this one on those decisions has the
-    same reachable DTMC, choice by choice.
+    same reachable DTMC, choice by choice. ``index`` is :func:`choice_index`'s: where a state's
+    labelled choices each test one value of the same decision, the consistent one is looked up
+    instead of testing each (the same choices, in the same order).
     """
+    lookup_dec, lookup_lo, lookup_start, lookup_choice, free_start, free_choice = index
     n_rewards = state_rewards.shape[0]
     order[0] = initial
     local_of[initial] = 0
@@ -73,10 +77,29 @@ def explore(
     while head < count:
         s = order[head]
         k = 0
-        for c in range(state_choices[s], state_choices[s + 1]):
-            if _consistent(policy, choice_dec, choice_val, c, consulted):
-                chosen[k] = c
+        d = lookup_dec[s]
+        if d >= 0:  # one decision decides among the labelled choices: look its value up
+            consulted[d] = True
+            x = policy[d] - lookup_lo[s]
+            found = -1
+            if 0 <= x < lookup_start[s + 1] - lookup_start[s]:
+                found = lookup_choice[lookup_start[s] + x]
+            for f in range(free_start[s], free_start[s + 1]):  # unlabelled: always consistent
+                u = free_choice[f]
+                if 0 <= found < u:
+                    chosen[k] = found
+                    k += 1
+                    found = -1
+                chosen[k] = u
                 k += 1
+            if found >= 0:
+                chosen[k] = found
+                k += 1
+        else:
+            for c in range(state_choices[s], state_choices[s + 1]):
+                if _consistent(policy, choice_dec, choice_val, c, consulted):
+                    chosen[k] = c
+                    k += 1
         for r in range(n_rewards):
             # Storm gives a deadlock state (made a self-loop) no reward, state rewards included
             rewards_out[r, head] = state_rewards[r, s] if k > 0 else 0.0
@@ -425,3 +448,59 @@ def residual(indptr, cols, vals, rows, x, constant):
         if abs(total) > worst:
             worst = abs(total)
     return worst
+
+
+@njit(cache=True)
+def choice_index(state_choices, choice_dec, choice_val):
+    """For :func:`explore`: per state whose labelled choices all test one value of the same
+    decision, each value once, that decision (else -1), the smallest value and a table from
+    value to choice (-1: none), and the state's unlabelled choices in order. A table is built
+    only where the values are not spread much wider than the choices."""
+    n = len(state_choices) - 1
+    width = choice_dec.shape[1]
+    lookup_dec = np.full(n, -1, dtype=np.int64)
+    lookup_lo = np.zeros(n, dtype=np.int64)
+    lookup_start = np.zeros(n + 1, dtype=np.int64)
+    free_start = np.zeros(n + 1, dtype=np.int64)
+    tables = 0
+    frees = 0
+    spans = np.zeros(n, dtype=np.int64)
+    for s in range(n):
+        d, lo, hi, labelled, single = -1, 0, -1, 0, True
+        for c in range(state_choices[s], state_choices[s + 1]):
+            if choice_dec[c, 0] < 0:
+                frees += 1
+                continue
+            if width > 1 and choice_dec[c, 1] >= 0:
+                single = False
+            if d < 0:
+                d, lo, hi = choice_dec[c, 0], choice_val[c, 0], choice_val[c, 0]
+            elif choice_dec[c, 0] != d:
+                single = False
+            lo = min(lo, choice_val[c, 0])
+            hi = max(hi, choice_val[c, 0])
+            labelled += 1
+        if single and labelled > 0 and hi - lo + 1 <= 4 * labelled + 16:
+            lookup_dec[s] = d
+            lookup_lo[s] = lo
+            spans[s] = hi - lo + 1
+            tables += hi - lo + 1
+    lookup_choice = np.full(tables, -1, dtype=np.int64)
+    free_choice = np.empty(frees, dtype=np.int64)
+    at, f = 0, 0
+    for s in range(n):
+        lookup_start[s] = at
+        free_start[s] = f
+        for c in range(state_choices[s], state_choices[s + 1]):
+            if choice_dec[c, 0] < 0:
+                free_choice[f] = c
+                f += 1
+            elif lookup_dec[s] >= 0:
+                slot = at + choice_val[c, 0] - lookup_lo[s]
+                if lookup_choice[slot] >= 0:  # a value twice: test the choices one by one
+                    lookup_dec[s] = -1
+                lookup_choice[slot] = c
+        at += spans[s]
+    lookup_start[n] = at
+    free_start[n] = f
+    return lookup_dec, lookup_lo, lookup_start, lookup_choice, free_start, free_choice

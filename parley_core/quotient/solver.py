@@ -55,6 +55,8 @@ class QuotientSolver:
         self.levels = np.empty(n, dtype=np.int64)
         self.chosen = np.empty(max(1, int(np.diff(quotient.state_choices).max(initial=0))), dtype=np.int64)
         self.stuck = np.zeros(n, dtype=np.bool_)
+        self.index = kernels.choice_index(quotient.state_choices, quotient.choice_dec, quotient.choice_val)
+        """Per state, its consistent choice looked up by value where one decision decides."""
         self.consulted = np.zeros(0, dtype=np.bool_)
         """The decisions the last solved policy consulted (see :func:`.kernels.explore`)."""
         self.last_states = 0
@@ -97,6 +99,7 @@ class QuotientSolver:
             self.chosen,
             self.stuck,
             self.consulted,
+            self.index,
         )
         self.last_states = count
         indptr, cols, vals = self.indptr[: count + 1], self.cols[:nnz], self.vals[:nnz]
