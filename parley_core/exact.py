@@ -194,7 +194,7 @@ def branch_and_bound(
     nodes = pruned = evaluated = unknown = 0
     stopped_by = "complete"
 
-    spent = {"bound": 0.0, "bounds": 0, "policy": 0.0, "policies": 0}
+    spent = {"bound": 0.0, "bounds": 0, "policy": 0.0, "policies": 0, "pending": 0}
 
     def leaf_size() -> int:
         if not adaptive or not spent["policies"] or not spent["bounds"]:
@@ -216,6 +216,7 @@ def branch_and_bound(
             values = np.asarray(evaluate(rows), dtype=float).reshape(len(rows), len(signs))
             count = len(rows)
         pending.clear()
+        spent["pending"] = 0
         spent["policy"] += time.perf_counter() - began
         spent["policies"] += count
         evaluated += count
@@ -223,9 +224,11 @@ def branch_and_bound(
         admit(rows, values)
 
     def queue(lo: np.ndarray, hi: np.ndarray) -> None:
-        pending.append(Box(lo, hi))
+        box = Box(lo, hi)
+        pending.append(box)
+        spent["pending"] += box.size
         # the first box goes at once: its time is what the adaptive leaf size is measured by
-        if not spent["policies"] or sum(box.size for box in pending) >= (BATCH if fronts is None else BOX_BATCH):
+        if not spent["policies"] or spent["pending"] >= (BATCH if fronts is None else BOX_BATCH):
             flush()
 
     def resolve(share: int) -> None:

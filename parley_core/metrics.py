@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import moocore
 import numpy as np
 
+from parley_core.boxes import FLOOR
 from parley_core.model import Direction, Objective
 
 
@@ -171,8 +172,7 @@ def front_disagreements(
     values = values[~np.isnan(values).any(axis=1)]
     exact = values[nondominated(values, directions)]
     signs = np.where(_maximize(directions), 1.0, -1.0)  # maximised, infinitely bad clamped
-    worst = -1e300
-    mine, theirs, best = (np.maximum(v * signs, worst) for v in (found, values, exact))
+    mine, theirs, best = (np.maximum(v * signs, FLOOR) for v in (found, values, exact))
 
     def slack(points: np.ndarray) -> np.ndarray:
         return tolerance * np.maximum(1.0, np.abs(np.where(np.isfinite(points), points, 0.0)))
@@ -189,4 +189,4 @@ def front_disagreements(
                 np.abs(best[None, :, :] - part[:, None, :]) <= slack(part)[:, None, :]
             )
             member[lo : lo + 1024] = near.all(axis=2).any(axis=1)
-    return values[~covered], found[~member | np.isnan(found).any(axis=1)]
+    return values[~covered], found[~member]  # a NaN found value is never near one

@@ -249,5 +249,6 @@ def test_looking_choices_up_keeps_the_choices_a_test_of_each_keeps(name):
     for policy in policies:
         assert fast.solve(policy) == slow.solve(policy)  # bit for bit: the same choices, in order
         assert (fast.consulted == slow.consulted).all()
-    if name in ("breaking", "robot_grid 3x3", "web_ids 3^6"):
-        assert (fast.index[0] >= 0).any(), "no state looked its choice up"
+    looked_up = (fast.index[0] >= 0).any()
+    # synchronised: every labelled choice reads two decisions, so each is tested as before
+    assert looked_up == (name != "synchronised"), looked_up
