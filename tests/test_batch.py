@@ -21,7 +21,7 @@ from parley_core.evaluate.batch import BatchChecker, BatchStormEvaluator, BatchT
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.model import DecisionKind, Objective, Service
 from parley_core.prism import program as prism
-from parley_core.prism.policy import INDEX, policy_template, tree
+from parley_core.prism.policy import INDEX, dispatch_policy, policy_template, tree
 from parley_core.testing import family as make
 from parley_core.usermodel import system_from_file
 
@@ -191,6 +191,15 @@ def test_a_batch_is_the_disjoint_union_of_its_policies():
     # the program names each policy's initial state by the policy index
     program = prism.parse_program(checker.task.template.render(policies))
     assert program.expression_manager.has_variable(INDEX)
+
+
+def test_the_dispatch_probabilities_name_each_policy_and_nothing_else():
+    for count in (2, 3, 17, 64):
+        weights = [(count + i) / (count * count + count * (count - 1) // 2) for i in range(count)]
+        assert sum(weights) == pytest.approx(1.0, abs=1e-12)
+        assert [dispatch_policy(w, count) for w in weights] == list(range(count))
+    with pytest.raises(RuntimeError, match="no policy's"):
+        dispatch_policy(1 / 40, 40)  # the uniform split of a program written before the weights
 
 
 def test_workers_give_the_same_values():

@@ -34,7 +34,7 @@ from parley_core.evaluate.pool import PoolOwner, default_workers, worker_state
 from parley_core.evaluate.storm import check_instance, reference_environment, unbounded_reward
 from parley_core.model import Family
 from parley_core.prism import program as prism
-from parley_core.prism.policy import INDEX, PolicyTemplate, policy_template
+from parley_core.prism.policy import PolicyTemplate, dispatch_policy, policy_template
 from parley_core.progress import Progress
 
 BATCH_STATES = 400_000
@@ -95,23 +95,18 @@ class BatchChecker:
             self.task.objective_names,
             self.unbounded,
             self.environment,
-            valuations=len(policies) > 1,
             at=lambda model: starts(model, len(policies)),
         )
-        variable = program.expression_manager.get_variable(INDEX)
-        out = np.full((len(policies), len(self.task.formulas)), np.nan)
-        for state, row in zip(at, rows):
-            index = model.state_valuations.get_int64_value(state, variable) if len(policies) > 1 else 0
-            out[index] = row
-        if np.isnan(out).any():
-            raise RuntimeError("a policy of the batch has no start state of its own")
+        out = np.asarray(rows, dtype=float).reshape(len(policies), len(self.task.formulas))
         # the dispatch state is not a policy's: without it, the batch's states are the policies'
         return out, int(model.nr_states) - (len(policies) > 1)
 
 
 def starts(model, count: int) -> list[int]:
-    """The states where the policies of a batch of ``count`` start: the initial state of a
-    single policy, else the successors of the dispatch state (the only initial state)."""
+    """The states where the policies of a batch of ``count`` start, in the policies' order:
+    the initial state of a single policy, else the successors of the dispatch state (the
+    only initial state), told apart by the probability of moving there
+    (:func:`~parley_core.prism.policy.dispatch_policy`)."""
     if len(model.initial_states) != 1:
         raise ModelError(
             f"the policy program has {len(model.initial_states)} initial states; parley needs exactly one "
@@ -120,10 +115,12 @@ def starts(model, count: int) -> list[int]:
     initial = model.initial_states[0]
     if count == 1:
         return [initial]
-    successors = [entry.column for entry in model.transition_matrix.get_row(initial)]
-    if len(successors) != count:
-        raise RuntimeError(f"the dispatch state of {count} policies has {len(successors)} successors")
-    return successors
+    found: dict[int, int] = {}
+    for entry in model.transition_matrix.get_row(initial):
+        found[dispatch_policy(float(entry.value), count)] = entry.column
+    if sorted(found) != list(range(count)):
+        raise RuntimeError(f"the dispatch state of {count} policies reaches the starts of {sorted(found)}")
+    return [found[i] for i in range(count)]
 
 
 def _worker_check(task: BatchTask, policies: np.ndarray) -> tuple[np.ndarray, int]:

@@ -94,7 +94,6 @@ def check_instance(
     unbounded: list[bool],
     environment,
     *,
-    valuations: bool = False,
     at: Callable[[Any], list[int]] | None = None,
 ) -> tuple[Any, list[int], list[list[float]]]:
     """Build a program whose constants are all defined and check every property at each of
@@ -102,11 +101,8 @@ def check_instance(
     ``values[state][objective]``.
 
     Checked at its one initial state alone, a model of at most :data:`EXACT_STATES` states
-    has its unbounded rewards checked in exact rational arithmetic. ``valuations``: build the
-    state valuations too (to tell states apart)."""
+    has its unbounded rewards checked in exact rational arithmetic."""
     options = stormpy.BuilderOptions(properties)
-    if valuations:
-        options.set_build_state_valuations()
 
     def build(value_type, build_options):
         try:

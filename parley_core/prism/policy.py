@@ -98,12 +98,33 @@ class PolicyTemplate:
         # initial value for a boolean declared after a global variable of range [0..0],
         # tests/test_batch.py, test_storm_misreads_a_single_valued_global). Several start in
         # the dispatch state parley_policy = K, whose one command moves to each policy's
-        # initial state with probability 1/K.
+        # initial state, policy i's with the probability dispatch_weight(i, K): the weights
+        # differ, so they tell the starts apart without Storm's state valuations (which cost
+        # about a fifth of a robot_grid batch's build).
         count = len(policies)
         top = max(1, count)
-        split = " + ".join(f"1/{count} : ({INDEX}'={i})" for i in range(count)) if count > 1 else f"({INDEX}'=0)"
+        total = _weight_total(count)
+        split = (
+            " + ".join(f"{count + i}/{total} : ({INDEX}'={i})" for i in range(count)) if count > 1 else f"({INDEX}'=0)"
+        )
         text = text.replace(_TOP, str(top)).replace(_SPLIT, split)
         return text.replace(_START, str(top if count > 1 else 0))
+
+
+def _weight_total(count: int) -> int:
+    return count * count + count * (count - 1) // 2
+
+
+def dispatch_policy(probability: float, count: int) -> int:
+    """The policy whose start the dispatch state of a batch of ``count`` reaches with
+    ``probability`` (policy ``i``'s is ``(count + i) / total``, ``total`` the sum over the
+    batch: distinct weights, the largest at most twice the smallest)."""
+    total = _weight_total(count)
+    scaled = probability * total
+    index = round(scaled) - count
+    if not 0 <= index < count or abs(scaled - round(scaled)) > 1e-6:
+        raise RuntimeError(f"the dispatch state of {count} policies moves with probability {probability}, no policy's")
+    return index
 
 
 def policy_template(family: Family) -> PolicyTemplate:
