@@ -145,3 +145,32 @@ def test_ordinal_children_stay_in_range_and_are_new_dtmcs(robot):
         for child in children:
             assert ((child >= lows) & (child <= highs)).all()
             assert not any((child[m] == p[m]).all() for p, m in zip((first, second), mask))
+
+
+def test_local_search_children_are_new_one_step_neighbours_of_the_front(robot):
+    family, evaluator = robot
+    archive = CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
+    search(
+        family, evaluator, SearchSettings(algorithm="archive", population=20, generations=3, seed=2), archive=archive
+    )
+    from parley_core.search.problem import PolicyProblem
+
+    problem = PolicyProblem(family, archive)
+    mating = OrdinalMating(local_rate=1.0)
+    front = mating.front(problem)
+    policies, masks = archive.rows(front)
+    members = problem.genes.encode(policies)
+
+    def known(child):
+        return problem.genes.decode(child[None])[0] in archive
+
+    children = mating.polish(problem, 40, np.random.default_rng(4), known)
+    assert len(children) >= 30  # a few draws may find no new neighbour
+    assert len({c.tobytes() for c in children}) == len(children)
+    for child in children:
+        assert not known(child)
+        differences = np.abs(members - child)
+        # one front member differs from the child in exactly one decision, by one step,
+        # and that member's reachable states consult that decision
+        near = np.flatnonzero((differences.sum(axis=1) == 1) & (differences.max(axis=1) == 1))
+        assert any(masks[i][np.flatnonzero(differences[i])[0]] for i in near)

@@ -10,7 +10,11 @@ first population the baselines and random policies (:func:`~parley_core.search.r
 - ``archive``: ``ordinal`` whose parents come from the archive's front half of the time;
 - ``sms``: SMS-EMOA (hypervolume-contribution survival, 10 children a generation) with the
   same mating as ``archive``;
-- ``blend``: ``archive`` whose first population's random half is blends of two baselines.
+- ``blend``: ``archive`` whose first population's random half is blends of two baselines;
+- ``local``: ``archive`` whose matings make, half of the time, one-step neighbours of the
+  archive's front instead (Pareto local search, :meth:`OrdinalMating.polish`);
+- ``small``: ``archive`` with half the population (50 for the paper's 100) after the first
+  generation, so twice the generations for the same evaluations.
 
 benchmarks/search.py measures them against each other.
 """
@@ -63,6 +67,24 @@ def _archive(population: int, sampling: np.ndarray) -> Algorithm:
     )
 
 
+def _local(population: int, sampling: np.ndarray) -> Algorithm:
+    return NSGA2(
+        pop_size=population,
+        sampling=sampling,
+        mating=OrdinalMating(archive_rate=0.5, local_rate=0.5),
+        eliminate_duplicates=True,
+    )
+
+
+def _small(population: int, sampling: np.ndarray) -> Algorithm:
+    return NSGA2(
+        pop_size=max(2, population // 2),
+        sampling=sampling,
+        mating=OrdinalMating(archive_rate=0.5),
+        eliminate_duplicates=True,
+    )
+
+
 def _sms(population: int, sampling: np.ndarray) -> Algorithm:
     return SMSEMOA(
         pop_size=population,
@@ -81,6 +103,8 @@ ALGORITHMS: dict[str, Configuration] = {
         Configuration("archive", "ordinal, half the parents from the archive's front", _archive),
         Configuration("sms", "SMS-EMOA with the archive's mating, 10 children a generation", _sms),
         Configuration("blend", "archive, half the first population blends of two baselines", _archive, blend=0.5),
+        Configuration("local", "archive, half the matings one-step neighbours of the front (local search)", _local),
+        Configuration("small", "archive with a population of 50 (twice the generations)", _small),
     )
 }
 """Every search configuration, by name."""

@@ -15,7 +15,11 @@ mutation on rounded floats know neither. :class:`OrdinalMating`
   else is reset to another value uniformly;
 - and rejects a child that equals a parent on every decision that parent consults (it is
   the parent's DTMC again: the same values for a second evaluation) or that the archive
-  already holds, drawing it again up to ``tries`` times.
+  already holds, drawing it again up to ``tries`` times;
+- with ``local_rate``, makes a mating's two children instead by Pareto local search: each is
+  a member of the archive's front (drawn with a weight of its distance to its nearest
+  neighbour on the front, so the front's gaps are filled first) with one decision it consults
+  moved one step up or down, a neighbour the archive does not hold yet.
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ class OrdinalMating(Mating):
         creep: float = 0.7,
         extra: float = 0.5,
         archive_rate: float = 0.0,
+        local_rate: float = 0.0,
         tries: int = 20,
         tournament=binary_tournament,
     ) -> None:
@@ -56,6 +61,7 @@ class OrdinalMating(Mating):
         self.creep = creep
         self.extra = extra
         self.archive_rate = archive_rate
+        self.local_rate = local_rate
         self.tries = tries
         self._front: tuple[int, np.ndarray] = (-1, np.zeros(0, dtype=np.int64))
         self._near: tuple = (-1, None, None)
@@ -75,14 +81,12 @@ class OrdinalMating(Mating):
             self._front = (len(archive), rows[keep] if len(rows) else rows)
         return self._front[1]
 
-    def neighbours(self, problem: PolicyProblem, count: int, rng) -> np.ndarray | None:
-        """``count`` pairs of archive rows, neighbours on the archive's front: the first of
-        each drawn with a weight of its distance to its nearest neighbour (isolated points
-        border the front's gaps), the second one of its three nearest (objectives scaled
-        to the front's range). None when the front has fewer than two points."""
+    def _nearest(self, problem: PolicyProblem):
+        """The archive front's three nearest neighbours of each member and the members'
+        weights (their distances to their nearest neighbour, normalised; None when those are
+        not all finite and positive), objectives scaled to the front's range; cached until the
+        archive grows."""
         front = self.front(problem)
-        if len(front) < 2 or count == 0:
-            return None
         if self._near[0] != len(problem.archive):
             values = problem.archive.values[front] * problem.signs
             values = np.where(np.isfinite(values), values, 0.0)
@@ -94,10 +98,47 @@ class OrdinalMating(Mating):
             gap = distance.min(axis=1)
             weights = gap / gap.sum() if np.isfinite(gap).all() and gap.sum() > 0 else None
             self._near = (len(problem.archive), near, weights)
-        _, near, weights = self._near
+        return self._near[1], self._near[2]
+
+    def neighbours(self, problem: PolicyProblem, count: int, rng) -> np.ndarray | None:
+        """``count`` pairs of archive rows, neighbours on the archive's front: the first of
+        each drawn with a weight of its distance to its nearest neighbour (isolated points
+        border the front's gaps), the second one of its three nearest (objectives scaled
+        to the front's range). None when the front has fewer than two points."""
+        front = self.front(problem)
+        if len(front) < 2 or count == 0:
+            return None
+        near, weights = self._nearest(problem)
         first = rng.choice(len(front), size=count, p=weights)
         second = near[first, rng.integers(0, near.shape[1], size=count)]
         return np.stack([front[first], front[second]], axis=1)
+
+    def polish(self, problem: PolicyProblem, count: int, rng, known) -> list[np.ndarray]:
+        """Up to ``count`` genes of one-step neighbours of the archive's front (the module's
+        local search), none of them in the archive or repeated; fewer when no new neighbour
+        turns up in ``tries`` draws of each."""
+        front = self.front(problem)
+        if len(front) == 0 or count == 0:
+            return []
+        weights = self._nearest(problem)[1] if len(front) >= 2 else None
+        lows, highs = problem.genes.lows, problem.genes.highs
+        members = front[rng.choice(len(front), size=count, p=weights)]
+        policies, masks = problem.archive.rows(members)
+        genes = problem.genes.encode(policies)
+        children: list[np.ndarray] = []
+        for parent, mask in zip(genes, masks):
+            movable = np.flatnonzero(mask & (highs > lows))
+            if len(movable) == 0:
+                continue
+            for _attempt in range(self.tries):
+                child = parent.copy()
+                j = movable[rng.integers(0, len(movable))]
+                step = 1 if rng.random() < 0.5 else -1
+                child[j] += step if lows[j] <= child[j] + step <= highs[j] else -step
+                if not (known(child) or any((child == c).all() for c in children)):
+                    children.append(child)
+                    break
+        return children
 
     def _do(self, problem, pop, n_offsprings, parents=None, random_state=None, **kwargs):
         rng = random_state
@@ -118,8 +159,9 @@ class OrdinalMating(Mating):
         def known(child: np.ndarray) -> bool:
             return problem.genes.decode(child[None])[0] in archive
 
-        children = []
-        for first, second in pairs:
+        local = rng.random(len(pairs)) < self.local_rate if self.local_rate > 0 else np.zeros(len(pairs), dtype=bool)
+        children = self.polish(problem, 2 * int(local.sum()), rng, known)
+        for first, second in pairs[~local]:
             masks = self._consulted(problem, np.stack([first, second]))
             for child in self._children(first, second, masks, lows, highs, rng, known):
                 children.append(child)
