@@ -202,6 +202,15 @@ def test_the_dispatch_probabilities_name_each_policy_and_nothing_else():
         dispatch_policy(1 / 40, 40)  # the uniform split of a program written before the weights
 
 
+def test_progress_counts_each_policy_once():
+    family = make("web_ids", [])
+    policies = family.random(np.random.default_rng(0), 411)  # the last batch once ran past the end
+    calls: list[int] = []
+    with BatchStormEvaluator(family, workers=1) as evaluator:
+        evaluator.evaluate(policies, progress=calls.append)
+    assert sum(calls) == len(policies)
+
+
 def test_workers_give_the_same_values():
     family = make("robot_grid", ["size=4", "seed=1"])
     policies = sample(family, 40, seed=3)

@@ -158,7 +158,7 @@ class BatchStormEvaluator(PoolOwner):
         # stops when the whole batch has converged), and a run's values should not depend
         # on --workers.
         share = max(MIN_SHARE, math.ceil(remaining / SHARES))
-        return max(1, min(size, MAX_BATCH, share))
+        return max(1, min(size, MAX_BATCH, share, remaining))
 
     def evaluate(self, policies: np.ndarray, progress: Progress | None = None) -> np.ndarray:
         policies = np.asarray(policies, dtype=np.int64).reshape(-1, len(self.family.decisions))
