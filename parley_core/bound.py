@@ -126,6 +126,30 @@ def _solve(model, text: str) -> tuple[float, float]:
     return value, PRECISION * scale
 
 
+def relaxation_queries(
+    family: Family, quotient: Quotient, wanted: Sequence[bool] | None = None
+) -> tuple[dict[str, np.ndarray], list[str | None]]:
+    """Storm's single-objective queries on the relaxation (None where it cannot express one,
+    or where ``wanted`` is False) and the state labels they use (``phi_i``, ``psi_i``: one
+    more state, the relaxation's deadlock sink)."""
+    labels: dict[str, np.ndarray] = {}
+    queries: list[str | None] = []
+    for i, (objective, kernel) in enumerate(zip(family.objectives, quotient.objectives)):
+        if kernel is None or (wanted is not None and not wanted[i]):
+            queries.append(None)
+            continue
+        query = _query(i, objective, kernel)
+        queries.append(query)
+        if query is None:
+            continue
+        if kernel.left is not None:
+            labels[f"phi{i}"] = np.append(kernel.left, False)
+        if kernel.right is not None:
+            # a policy's own deadlocks are the relaxation's moves to the sink
+            labels[f"psi{i}"] = np.append(kernel.right, bool(kernel.right_deadlock))
+    return labels, queries
+
+
 def ideal_point(
     family: Family, quotient: Quotient, bounds: RelaxedObjectives | None = None, by_storm: bool = False
 ) -> Bound:
@@ -139,18 +163,7 @@ def ideal_point(
     everything = bounds.restrict(np.zeros(len(bounds.sizes), dtype=np.int64), bounds.sizes - 1)
     own = bounds.ideal(everything) * bounds.signs
     ours = [supported and not by_storm for supported in bounds.supported]
-    labels: dict[str, np.ndarray] = {}
-    queries: list[str | None] = []
-    for i, (objective, kernel) in enumerate(zip(family.objectives, quotient.objectives)):
-        query = None if kernel is None or ours[i] else _query(i, objective, kernel)
-        queries.append(query)
-        if query is None or kernel is None:
-            continue
-        if kernel.left is not None:
-            labels[f"phi{i}"] = np.append(kernel.left, False)
-        if kernel.right is not None:
-            # a policy's own deadlocks are the relaxation's moves to the sink
-            labels[f"psi{i}"] = np.append(kernel.right, bool(kernel.right_deadlock))
+    labels, queries = relaxation_queries(family, quotient, [not own for own in ours])
     model = storm_model(relaxation, labels) if any(q is not None for q in queries) else None
     point = []
     for i, (objective, kernel, query) in enumerate(zip(family.objectives, quotient.objectives, queries)):

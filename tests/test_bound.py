@@ -19,6 +19,7 @@ from parley_core.bound import ideal_point, pareto_outer
 from parley_core.cli import app
 from parley_core.model import DecisionKind, Direction, Objective, Service
 from parley_core.quotient.coloring import build_quotient
+from parley_core.storm_pareto import storm_pareto
 from parley_core.testing import family, values
 from parley_core.usermodel import system_from_file
 
@@ -101,6 +102,26 @@ def test_the_kernels_ideal_point_is_storms_on_the_relaxation(name, case):
             continue
         # Storm widens by its precision, 1e-9 of the largest state value
         assert abs(a - b) <= 1e-6 * max(1.0, abs(b)), (name, objective.name, a, b)
+
+
+@pytest.mark.parametrize("name", ["robot_grid 5x5", "web_ids", "tas", "synchronised"])
+def test_storms_multi_objective_points_of_the_relaxation_lie_inside_the_pareto_bound(name):
+    # Storm's own multi-objective engine (PCAA) on the relaxation: the vertices of its
+    # under-approximation are values relaxed schedulers reach, so a sound outer bound of the
+    # relaxation, the kernels' backward induction here, weakly dominates every one of them
+    case = dict(_families())[name]
+    quotient = build_quotient(case)
+    outer = pareto_outer(case, quotient)
+    assert "weighted sums" in outer.method  # a staircase, not the ideal point alone
+    storm = storm_pareto(case, quotient, precision=1e-4)
+    assert len(storm.achieved) >= 2
+    assert outer.dominates(storm.achieved, tolerance=1e-6).all(), (name, storm.achieved, outer.points)
+    # and the check has teeth: the staircase moved inwards by 1 % (of its span, or of its
+    # values where the span is nil) leaves some out
+    signs = np.array([o.direction.sign for o in case.objectives])
+    step = 0.01 * np.maximum(np.ptp(outer.points, axis=0), np.abs(outer.points).max(axis=0))
+    moved = attrs.evolve(outer, points=outer.points + step * signs)
+    assert not moved.dominates(storm.achieved, tolerance=1e-6).all()
 
 
 def test_a_bound_that_is_wrong_is_caught():
