@@ -4,8 +4,7 @@ the curve that the kernels' outer bound (:func:`parley_core.bound.pareto_outer`)
 Storm's multi-objective model checking (``multi(...)``, its PCAA method) accepts the
 relaxation's objectives, step-bounded cumulative rewards included, and answers with two
 polytopes: an *under*-approximation, spanned by values that schedulers of the relaxation
-reach (each vertex one scheduler's, or a mix of two), and an *over*-approximation of what
-they can reach. The under-approximation's vertices are points some relaxed scheduler achieves
+reach, and an *over*-approximation of what they can reach. The under-approximation's vertices are points some relaxed scheduler achieves
 (to Storm's precision), so every sound outer bound of the relaxation weakly dominates them:
 the tests hold :func:`~parley_core.bound.pareto_outer`'s staircase, computed by parley's own
 backward induction, against this independent implementation. Storm's over-approximation is
@@ -34,8 +33,6 @@ class StormPareto:
     query: str
     achieved: np.ndarray = field(eq=False)
     """Vertices of the under-approximation: values relaxed schedulers reach."""
-    outer: np.ndarray = field(eq=False)
-    """Vertices of the over-approximation."""
     seconds: float
 
 
@@ -48,9 +45,11 @@ def storm_pareto(family: Family, quotient: Quotient, precision: float = 1e-6) ->
     start = time.perf_counter()
     relaxation = RelaxedObjectives(family, quotient).relaxation
     labels, queries = relaxation_queries(family, quotient)
+    if len(queries) < 2:
+        raise ModelError("a multi-objective query needs at least two objectives")
     missing = [o.name for o, q in zip(family.objectives, queries) if q is None]
-    if missing or len(queries) < 2:
-        raise ModelError(f"no multi-objective query on the relaxation for objective(s) {', '.join(missing) or '-'}")
+    if missing:
+        raise ModelError(f"no query on the relaxation for objective(s) {', '.join(missing)}")
     text = "multi(" + ", ".join(q for q in queries if q is not None) + ")"
     model = storm_model(relaxation, labels)
     (prop,) = stormpy.parse_properties(text)
@@ -63,6 +62,5 @@ def storm_pareto(family: Family, quotient: Quotient, precision: float = 1e-6) ->
     return StormPareto(
         query=text,
         achieved=np.array(result.get_under_approximation().vertices, dtype=float).reshape(-1, len(queries)),
-        outer=np.array(result.get_over_approximation().vertices, dtype=float).reshape(-1, len(queries)),
         seconds=time.perf_counter() - start,
     )

@@ -6,6 +6,7 @@ every objective shape, and on random maps (property-based)."""
 from __future__ import annotations
 
 import itertools
+import re
 from pathlib import Path
 
 import numpy as np
@@ -194,10 +195,16 @@ def test_a_batch_is_the_disjoint_union_of_its_policies():
 
 
 def test_the_dispatch_probabilities_name_each_policy_and_nothing_else():
+    family = make("web_ids", [])
+    template = BatchTask.of(family).template
     for count in (2, 3, 17, 64):
-        weights = [(count + i) / (count * count + count * (count - 1) // 2) for i in range(count)]
+        policies = np.tile(np.array(family.lows, dtype=np.int64), (count, 1))
+        # the probabilities the rendered program gives each policy's start, as Storm reads them
+        found = re.findall(rf"(\d+)/(\d+) : \({INDEX}'=(\d+)\)", template.render(policies))
+        assert len(found) == count
+        weights = [int(a) / int(b) for a, b, _ in found]
         assert sum(weights) == pytest.approx(1.0, abs=1e-12)
-        assert [dispatch_policy(w, count) for w in weights] == list(range(count))
+        assert [dispatch_policy(w, count) for w in weights] == [int(i) for _, _, i in found] == list(range(count))
     with pytest.raises(RuntimeError, match="no policy's"):
         dispatch_policy(1 / 40, 40)  # the uniform split of a program written before the weights
 

@@ -98,7 +98,7 @@ class PolicyTemplate:
         # initial value for a boolean declared after a global variable of range [0..0],
         # tests/test_batch.py, test_storm_misreads_a_single_valued_global). Several start in
         # the dispatch state parley_policy = K, whose one command moves to each policy's
-        # initial state, policy i's with the probability dispatch_weight(i, K): the weights
+        # initial state, policy i's with probability (K + i) / total (dispatch_policy): the weights
         # differ, so they tell the starts apart without Storm's state valuations (which cost
         # about a fifth of a robot_grid batch's build).
         count = len(policies)

@@ -133,8 +133,7 @@ class OrdinalMating(Mating):
             for _attempt in range(self.tries):
                 child = parent.copy()
                 j = movable[rng.integers(0, len(movable))]
-                step = 1 if rng.random() < 0.5 else -1
-                child[j] += step if lows[j] <= child[j] + step <= highs[j] else -step
+                child[j] = _creep(child[j], lows[j], highs[j], rng)
                 if not (known(child) or any((child == c).all() for c in children)):
                     children.append(child)
                     break
@@ -206,11 +205,7 @@ class OrdinalMating(Mating):
             count += 1
         for j in rng.choice(genes, size=count, replace=False):
             if rng.random() < self.creep:
-                step = 1 if rng.random() < 0.5 else -1
-                value = child[j] + step
-                if value < lows[j] or value > highs[j]:
-                    value = child[j] - step
-                child[j] = value
+                child[j] = _creep(child[j], lows[j], highs[j], rng)
             else:
                 others = highs[j] - lows[j]
                 value = lows[j] + rng.integers(0, others)
@@ -219,3 +214,9 @@ class OrdinalMating(Mating):
     @staticmethod
     def _repeats(child, parents, masks) -> bool:
         return any((child[m] == p[m]).all() for p, m in zip(parents, masks))
+
+
+def _creep(value: int, low: int, high: int, rng) -> int:
+    """One step up or down at random, the other way at the end of the range."""
+    step = 1 if rng.random() < 0.5 else -1
+    return value + step if low <= value + step <= high else value - step

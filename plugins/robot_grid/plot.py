@@ -68,7 +68,7 @@ def draw_policy(
             scale_units="xy",
             scale=1,
             color="firebrick",
-            width=0.004 if detailed else 0.0015,
+            width=0.004,
         )
     for (x, y), mark in ((grid.start, "S"), (grid.target, "T")):
         ax.add_patch(Rectangle((x - 0.5, y - 0.5), 1, 1, fill=False, edgecolor="crimson", lw=2))
