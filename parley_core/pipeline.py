@@ -237,18 +237,21 @@ def run(
                 f"search interrupted after {result.generations} generations; writing the front of what was evaluated"
             )
         refined = outer = None
+        searched_values = result.values
         if bound == "refine" and not result.interrupted:
             with _timed(timings, "bound"):
                 cheap = _outer(family, engine, "pareto")
                 outer = cheap[0]
-                refined = _refine(family, engine, result, bound_time, reporter, cheap)
+                refined, searched_values = _refine(family, engine, result, bound_time, reporter, cheap)
     except BaseException:
         engine.close(abort=True)
         raise
     engine.close()
 
     names = [o.name for o in family.objectives]
-    found_policies, found_values = result.policies, result.values
+    # the search's values as branch and bound saw them: one solver's values on both sides of
+    # the merge, so that two policies tied to rounding do not both look nondominated
+    found_policies, found_values = result.policies, searched_values
     if refined is not None and len(refined.values):
         found_policies = np.vstack([found_policies, refined.policies])
         found_values = np.vstack([found_values, refined.values])
@@ -360,7 +363,8 @@ def _outer(family: Family, engine: Evaluator | None, method: str):
 
 def _refine(family: Family, engine: Evaluator, result: SearchResult, seconds: float | None, reporter: Reporter, outer):
     """Branch and bound after the search, seeded with everything the search evaluated and
-    started from the cheap bound's half-spaces (``outer``: what :func:`_outer` returns)."""
+    started from the cheap bound's half-spaces (``outer``: what :func:`_outer` returns); with
+    the seeds' values as branch and bound took them (:meth:`QuotientEvaluator.box_seeds`)."""
     from parley_core.exact import branch_and_bound
 
     found, bounds = outer
@@ -375,17 +379,21 @@ def _refine(family: Family, engine: Evaluator, result: SearchResult, seconds: fl
             reporter.advance(now - done)
             done = now
 
-    return branch_and_bound(
+    seeds = (result.policies, result.values)
+    if hasattr(engine, "box_seeds"):
+        seeds = engine.box_seeds(*seeds)
+    exact = branch_and_bound(
         family,
         bounds.quotient,
         engine.evaluate,
-        seeds=(result.policies, result.values),
+        seeds=seeds,
         time_limit=seconds,
         progress=progress,
         root_cuts=found.cuts,
         bounds=bounds,
         fronts=getattr(engine, "box_fronts", None),
     )
+    return exact, seeds[1]
 
 
 def _best(column: np.ndarray, objective) -> float:

@@ -11,6 +11,7 @@ by Storm on the quotient). Any other objective is evaluated by the Storm evaluat
 
 from __future__ import annotations
 
+import time
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
@@ -21,15 +22,29 @@ from parley_core.evaluate.storm import StormEvaluator
 from parley_core.model import Family
 from parley_core.progress import Progress
 from parley_core.quotient.coloring import Quotient, build_quotient
+from parley_core.quotient.forward import BoxWalker
 from parley_core.quotient.mdp import QuotientMDP
 from parley_core.quotient.solver import QuotientSolver
 
 _SOLVER: list[QuotientSolver] = []
 """Per worker process: its solver, set once by the pool's initializer."""
+_WALKER: list[BoxWalker | None] = []
+"""Per worker process: its box walker, made when first needed."""
+PROBE = 512
+"""Policies of the first box that both box solvers are timed on (:meth:`QuotientEvaluator.box_fronts`)."""
 
 
 def _worker_start(quotient: Quotient) -> None:
     _SOLVER[:] = [QuotientSolver(quotient)]
+    _WALKER.clear()
+
+
+def _domain_table(domains: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The decisions' domains as one flat array and its pointers (for :class:`BoxWalker`)."""
+    pointers = np.zeros(len(domains) + 1, dtype=np.int64)
+    pointers[1:] = np.cumsum([len(d) for d in domains])
+    flat = np.concatenate(domains) if domains else np.zeros(0, dtype=np.int64)
+    return pointers, flat.astype(np.int64)
 
 
 def _solve_rows(solver: QuotientSolver, rows: np.ndarray, n_objectives: int, progress=None):
@@ -51,15 +66,20 @@ def _worker_solve(rows: np.ndarray, n_objectives: int) -> tuple[np.ndarray, np.n
     return values, consulted, solver.direct_solves - before
 
 
-def _box_fronts(solver: QuotientSolver, boxes: list[Box], domains, signs, n_objectives: int):
+def _box_fronts(solver: QuotientSolver, boxes: list[Box], domains, signs, n_objectives: int, walker=None):
     """Each box's policies solved and cut to the box's own front (:func:`.local_front`):
     (rows, values) of the fronts, in box order, and the rows whose values the quotient could
-    not certify (for Storm), the policies solved and the direct solves."""
+    not certify (for Storm), the policies solved and the direct solves. With a ``walker``
+    (:class:`BoxWalker`), each box is walked as a whole instead of solved policy by policy."""
     before = solver.direct_solves
     rows_out, values_out, unsure, solved = [], [], [], 0
+    table = _domain_table(domains)
     for box in boxes:
-        rows = box_rows(box, domains)
-        values, _ = _solve_rows(solver, rows, n_objectives)
+        if walker is not None:
+            rows, values = walker.solve(box, *table)
+        else:
+            rows = box_rows(box, domains)
+            values, _ = _solve_rows(solver, rows, n_objectives)
         solved += len(rows)
         keep = local_front(values, signs)
         rows_out.append(rows[keep])
@@ -75,8 +95,21 @@ def _box_fronts(solver: QuotientSolver, boxes: list[Box], domains, signs, n_obje
     )
 
 
-def _worker_box_fronts(boxes: list[Box], domains, signs, n_objectives: int):
-    return _box_fronts(_SOLVER[0], boxes, domains, signs, n_objectives)
+def _worker_box_fronts(boxes: list[Box], domains, signs, n_objectives: int, walk: bool):
+    if walk and not _WALKER:
+        _WALKER.append(BoxWalker.of(_SOLVER[0].q))
+    return _box_fronts(_SOLVER[0], boxes, domains, signs, n_objectives, _WALKER[0] if walk else None)
+
+
+def _probe_box(box: Box, limit: int) -> Box:
+    """A part of ``box`` with at most ``limit`` policies: its leading decisions fixed at their
+    lowest values until the rest fit."""
+    lo, hi = box.lo.copy(), box.hi.copy()
+    for d in range(len(lo)):
+        if Box(lo, hi).size <= limit:
+            break
+        hi[d] = lo[d]
+    return Box(lo, hi)
 
 
 def _offsets(boxes: list[Box]):
@@ -115,6 +148,9 @@ class QuotientEvaluator:
         """Policies whose sweeps could not be certified and were solved directly."""
         self.uncertified = 0
         """Policies no solve of the quotient could certify, checked by Storm instead."""
+        self._walker = BoxWalker.of(self.quotient) if not self.fallback else None
+        self._walk: bool | None = None
+        """Whether :meth:`box_fronts` walks boxes (None: not decided yet)."""
 
     def evaluate(self, policies: np.ndarray, progress: Progress | None = None) -> np.ndarray:
         return self.evaluate_consulted(policies, progress)[0]
@@ -171,17 +207,18 @@ class QuotientEvaluator:
             values = self.evaluate(rows)
             keep = np.concatenate([o + local_front(values[o : o + b.size], signs) for o, b in _offsets(boxes)])
             return rows[keep], values[keep], len(rows)
+        walk = self._walks(boxes[0], domains) if boxes else False
         if self.workers > 1 and sum(b.size for b in boxes) >= 64:
             pool = self._executor()
             shares: list[list[Box]] = [[] for _ in range(self.workers * 2)]
             for i, box in enumerate(boxes):  # contiguous shares keep the boxes in order
                 shares[i * len(shares) // len(boxes)].append(box)
             futures = [
-                pool.submit(_worker_box_fronts, share, domains, signs, n_objectives) for share in shares if share
+                pool.submit(_worker_box_fronts, share, domains, signs, n_objectives, walk) for share in shares if share
             ]
             parts = [f.result() for f in futures]
         else:
-            parts = [_box_fronts(self.solver, boxes, domains, signs, n_objectives)]
+            parts = [_box_fronts(self.solver, boxes, domains, signs, n_objectives, self._walker if walk else None)]
         self.direct_solves += sum(p[4] for p in parts)
         rows = np.vstack([p[0] for p in parts])
         values = np.vstack([p[1] for p in parts])
@@ -190,6 +227,40 @@ class QuotientEvaluator:
             self.uncertified += len(unsure)
             rows, values = np.vstack([rows, unsure]), np.vstack([values, self._storm_values(unsure)])
         return rows, values, sum(p[3] for p in parts)
+
+    def box_seeds(self, rows: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Seeds for branch and bound over :meth:`box_fronts` (policies and their values from
+        :meth:`evaluate`), with their values as :meth:`box_fronts` gives them. The walk and
+        the solve agree to rounding, but a front that mixed them could keep a policy that wins
+        a tie by rounding alone (a last-bit better value beside a much worse one)."""
+        domains = [np.array(d.service.values, dtype=np.int64) for d in self.family.decisions]
+        rows = np.asarray(rows, dtype=np.int64).reshape(-1, len(domains))
+        whole = Box(np.zeros(len(domains), dtype=np.int64), np.array([len(d) - 1 for d in domains], dtype=np.int64))
+        if not len(rows) or self._walker is None or not self._walks(whole, domains):
+            return rows, values
+        table = _domain_table(domains)
+        index = np.column_stack([np.searchsorted(domain, rows[:, d]) for d, domain in enumerate(domains)])
+        walked = np.vstack([self._walker.solve(Box(i, i), *table)[1] for i in index])
+        return rows, walked
+
+    def _walks(self, box: Box, domains: list[np.ndarray]) -> bool:
+        """Whether boxes are walked (:class:`BoxWalker`) rather than solved policy by policy:
+        decided once, on the first box, by timing both on :data:`PROBE` of its policies.
+        Both give every value to within rounding (1e-14 of its size), and the choice holds
+        for the whole evaluator, so every box of a run is solved the same way."""
+        if self._walk is None:
+            self._walk = False
+            if self._walker is not None:
+                probe = _probe_box(box, PROBE)
+                table = _domain_table(domains)
+                self._walker.solve(Box(probe.lo, probe.lo), *table)  # compiled before it is timed
+                began = time.perf_counter()
+                rows, _ = self._walker.solve(probe, *table)
+                walked = time.perf_counter() - began
+                began = time.perf_counter()
+                _solve_rows(self.solver, rows, len(self.family.objectives))
+                self._walk = walked < time.perf_counter() - began
+        return self._walk
 
     def _storm_values(self, policies: np.ndarray) -> np.ndarray:
         if self._storm is None:
@@ -205,6 +276,7 @@ class QuotientEvaluator:
             "objectives_checked_by_storm": list(self.fallback),
             "direct_solves": self.direct_solves,
             "policies_checked_by_storm_uncertified": self.uncertified,
+            "boxes_walked": bool(self._walk),
         }
 
     def _executor(self) -> ProcessPoolExecutor:

@@ -84,7 +84,7 @@ def _widest(state_choices, choice_dec):
 
 
 @njit(cache=True)
-def _decision_lists(state_choices, choice_dec):
+def decision_lists(state_choices, choice_dec):
     """Per state the decisions its choices consult (CSR: pointers, flat list)."""
     states = state_choices.shape[0] - 1
     buffer = np.empty(_widest(state_choices, choice_dec), dtype=np.int64)
@@ -216,7 +216,7 @@ def relax(quotient: Quotient, family: Family) -> Relaxation:
     merged_actions = action_of[starts]
     action_entries = np.zeros(actions + 2, dtype=np.int64)
     np.add.at(action_entries, merged_actions + 1, 1)
-    state_decisions, decisions = _decision_lists(q.state_choices, q.choice_dec)
+    state_decisions, decisions = decision_lists(q.state_choices, q.choice_dec)
     return Relaxation(
         state_decisions=state_decisions,
         decisions=decisions,
