@@ -15,7 +15,7 @@ import stormpy
 from conftest import toy_system
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_quotient import OBJECTIVES, STUCK, SYNCHRONISED, breaking_system
+from test_quotient import OBJECTIVES, STUCK, breaking_system, synchronised_system
 
 from parley_core.augment import augment
 from parley_core.evaluate.batch import BatchChecker, BatchStormEvaluator, BatchTask
@@ -93,14 +93,7 @@ def test_bounded_and_reachability_objectives_share_a_program():
 
 
 def test_synchronising_modules_and_deadlocks_agree():
-    synchronised = toy_system(
-        prism=SYNCHRONISED,
-        observation=("a",),
-        objectives=[
-            Objective(name="full", formula="P=? [F b=3]", direction="max"),
-            Objective(name="load", formula='R{"b"}=? [C<=6]', direction="min"),
-        ],
-    )
+    synchronised = synchronised_system(("full", "P=? [F b=3]", "max"), ("load", 'R{"b"}=? [C<=6]', "min"))
     family = make(synchronised)
     agree(family, np.array(list(itertools.product(range(1, 4), repeat=len(family.decisions)))))
     stuck = toy_system(

@@ -12,7 +12,7 @@ import attrs
 import numpy as np
 import pytest
 from conftest import toy_system
-from test_quotient import OBJECTIVES, STUCK, SYNCHRONISED, breaking_system
+from test_quotient import OBJECTIVES, STUCK, breaking_system, synchronised_system
 from typer.testing import CliRunner
 
 from parley_core.bound import ideal_point, pareto_outer
@@ -42,16 +42,7 @@ def _families():
     yield "breaking (max)", family(attrs.evolve(breaking, objectives=_flip(breaking.objectives, set(OBJECTIVES))))
     yield (
         "synchronised",
-        family(
-            toy_system(
-                prism=SYNCHRONISED,
-                observation=("a",),
-                objectives=[
-                    Objective(name="full", formula="P=? [F b=3]", direction="max"),
-                    Objective(name="load", formula='R{"b"}=? [C<=6]', direction="min"),
-                ],
-            )
-        ),
+        family(synchronised_system(("full", "P=? [F b=3]", "max"), ("load", 'R{"b"}=? [C<=6]', "min"))),
     )
     yield (
         "stuck",

@@ -11,9 +11,8 @@ import json
 import attrs
 import numpy as np
 import pytest
-from conftest import toy_system
 from test_bound import _families, _flip
-from test_quotient import OBJECTIVES, SYNCHRONISED, breaking_system
+from test_quotient import OBJECTIVES, breaking_system, synchronised_system
 from typer.testing import CliRunner
 
 from parley_core import metrics
@@ -22,7 +21,6 @@ from parley_core.boxes import Box, box_rows, local_front
 from parley_core.cli import app
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.exact import Archive, branch_and_bound
-from parley_core.model import Objective
 from parley_core.pipeline import make_family
 from parley_core.quotient.coloring import build_quotient
 from parley_core.quotient.solver import QuotientSolver
@@ -84,16 +82,7 @@ def _cases():
     yield from _pairs()
     yield (
         "synchronised, max load",
-        family(
-            toy_system(
-                prism=SYNCHRONISED,
-                observation=("a",),
-                objectives=[
-                    Objective(name="full", formula="P=? [F<=4 b=3]", direction="max"),
-                    Objective(name="load", formula='R{"b"}=? [C<=6]', direction="max"),
-                ],
-            )
-        ),
+        family(synchronised_system(("full", "P=? [F<=4 b=3]", "max"), ("load", 'R{"b"}=? [C<=6]', "max"))),
     )
 
 

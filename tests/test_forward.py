@@ -8,14 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import toy_system
 from test_exact import _assert_same_front, _solver
-from test_quotient import SYNCHRONISED, breaking_system
+from test_quotient import breaking_system, synchronised_system
 
 from parley_core.boxes import Box, box_rows
 from parley_core.evaluate.quotient import QuotientEvaluator, _domain_table
 from parley_core.exact import branch_and_bound
-from parley_core.model import Objective
 from parley_core.quotient.coloring import build_quotient
 from parley_core.quotient.forward import BoxWalker
 from parley_core.quotient.solver import QuotientSolver
@@ -33,13 +31,7 @@ def _cumulative_families():
     # choices that consult two decisions at once (no lookup), a reward of the state
     yield (
         "synchronised",
-        family(
-            toy_system(
-                prism=SYNCHRONISED,
-                observation=("a",),
-                objectives=[Objective(name="load", formula='R{"b"}=? [C<=6]', direction="max")],
-            )
-        ),
+        family(synchronised_system(("load", 'R{"b"}=? [C<=6]', "max"))),
     )
 
 

@@ -161,17 +161,20 @@ endrewards
 """
 
 
+def synchronised_system(*objectives: tuple[str, str, str]):
+    """:data:`SYNCHRONISED`, its service observed by ``a``, with objectives (name, formula,
+    direction)."""
+    return toy_system(
+        prism=SYNCHRONISED,
+        observation=("a",),
+        objectives=[Objective(name=name, formula=formula, direction=way) for name, formula, way in objectives],
+    )
+
+
 def test_a_constant_read_by_synchronising_modules_agrees_with_storm():
     # a choice of the quotient combines A's copy for one value of c with B's for another:
     # no policy keeps it, as no policy's DTMC has it
-    system = toy_system(
-        prism=SYNCHRONISED,
-        observation=("a",),
-        objectives=[
-            Objective(name="full", formula="P=? [F b=3]", direction="max"),
-            Objective(name="load", formula='R{"b"}=? [C<=6]', direction="min"),
-        ],
-    )
+    system = synchronised_system(("full", "P=? [F b=3]", "max"), ("load", 'R{"b"}=? [C<=6]', "min"))
     family = augment(system)
     policies = np.array(list(itertools.product(range(1, 4), repeat=len(family.decisions))))
     with QuotientEvaluator(family, workers=1) as fast, StormEvaluator(family, workers=1) as storm:
@@ -224,13 +227,7 @@ def _without_lookup(solver: QuotientSolver) -> QuotientSolver:
 def test_looking_choices_up_keeps_the_choices_a_test_of_each_keeps(name):
     family = {
         "breaking": lambda: augment(breaking_system(OBJECTIVES)),
-        "synchronised": lambda: augment(
-            toy_system(
-                prism=SYNCHRONISED,
-                observation=("a",),
-                objectives=[Objective(name="load", formula='R{"b"}=? [C<=6]', direction="min")],
-            )
-        ),
+        "synchronised": lambda: augment(synchronised_system(("load", 'R{"b"}=? [C<=6]', "min"))),
         "stuck": lambda: augment(
             toy_system(
                 prism=STUCK,
