@@ -9,11 +9,14 @@ uniformly, a state without one keeps its probability (Storm's self-loop) and ear
 and a state earns its state reward plus the mean action reward of its consistent choices.
 
 Policies of a box share prefixes. The box is walked as an odometer whose fastest digits are
-the decisions first consulted latest; each step's distribution is kept, and the next policy
-resumes at the first step where a decision it changes was consulted: every earlier step
-reads no changed decision, so it is the same step, bit for bit, as a walk from the start.
-On web_ids the last two decisions are first consulted at step 66 (of about 100 that carry
-probability), so most policies of a box skip most steps.
+the decisions first consulted latest; the distribution is kept at each step where a
+decision is first consulted, and the next policy resumes at the first step where a decision
+it changes was consulted: every earlier step reads no changed decision, so it is the same
+step, bit for bit, as a walk from the start. On web_ids the last two decisions are first
+consulted at step 66 (of about 100 that carry probability), so most policies of a box skip
+most steps. They share rows too: a state's mixed row (successors, probabilities, rewards)
+is kept until a decision its choices read changes, so most states of a box are resolved
+once for all its policies.
 """
 
 from __future__ import annotations
@@ -60,12 +63,27 @@ def box_cumulative(
     following = np.empty(n, dtype=np.int64)
     listed = np.zeros(n, dtype=np.bool_)
     keep = out.shape[0] > 1  # one policy shares nothing
-    kept_start = np.zeros(horizon + 1, dtype=np.int64)
-    kept_states = np.empty(n * horizon if keep else 1, dtype=np.int64)
-    kept_mass = np.empty(n * horizon if keep else 1)
+    # the distribution at the start of each step where a decision is first consulted (the
+    # only steps a walk resumes at), and the totals before it
+    kept_at = np.full(horizon + 1, -1, dtype=np.int64)
+    kept_len = np.zeros(horizon + 1, dtype=np.int64)
+    kept_states = np.empty(n * (n_dec + 1) if keep else 1, dtype=np.int64)
+    kept_mass = np.empty(n * (n_dec + 1) if keep else 1)
     kept_totals = np.zeros((horizon + 1, 2 * n_obj))
+    fill = 0
     first = np.full(n_dec, NEVER, dtype=np.int64)
     """The step at which each decision was first consulted in the walk so far."""
+    # each state's row (successors, probabilities and rewards of its consistent choices,
+    # mixed), kept while no decision it reads changes: most states of a box keep theirs
+    row_start = np.empty(n + 1, dtype=np.int64)
+    for s in range(n + 1):
+        row_start[s] = choice_branches[state_choices[s]]
+    row_target = np.empty(max(1, row_start[n]), dtype=np.int64)
+    row_probability = np.empty(max(1, row_start[n]))
+    row_reward = np.empty((n_obj, n))
+    row_len = np.full(n, -1, dtype=np.int64)  # -1: none kept; 0: a deadlock
+    cached_at = np.zeros(n, dtype=np.int64)  # the policy a row was made for
+    changed_at = np.zeros(n_dec, dtype=np.int64)  # the first policy since a decision's last change
     digits = np.zeros(n_dec, dtype=np.int64)
     order = np.arange(n_dec)  # odometer positions: order[-1] turns fastest
     policy = np.empty(n_dec, dtype=np.int64)
@@ -77,67 +95,82 @@ def box_cumulative(
     mass[initial] = 1.0
     active[0] = initial
     n_active = 1
+    for o in range(2 * n_obj):
+        totals[o] = 0.0
     for p in range(out.shape[0]):
-        if p > 0:
-            for i in range(n_active):  # clear what the last walk left
-                mass[active[i]] = 0.0
-            n_active = 0
-            for i in range(kept_start[resume], kept_start[resume + 1]):
+        if p > 0 and resume < horizon:  # (at the horizon: nothing the walk read changed)
+            n_active = 0  # a finished walk leaves no probability anywhere
+            fill = kept_at[resume]
+            for i in range(fill, fill + kept_len[resume]):
                 s = kept_states[i]
                 mass[s] = kept_mass[i]
                 active[n_active] = s
                 n_active += 1
             for o in range(2 * n_obj):
                 totals[o] = kept_totals[resume, o]
-        else:
-            for o in range(2 * n_obj):
-                totals[o] = 0.0
         for j in range(resume, horizon):
-            if keep:  # the distribution at the start of step j, and the totals before it
-                at = kept_start[j]
-                for i in range(n_active):
-                    kept_states[at + i] = active[i]
-                    kept_mass[at + i] = mass[active[i]]
-                kept_start[j + 1] = at + n_active
-                for o in range(2 * n_obj):
-                    kept_totals[j, o] = totals[o]
+            novel = False  # whether a decision is first consulted at this step
             last = j + 1 == horizon
             n_next = 0
             for o in range(n_obj):
                 step_totals[o] = 0.0
             for i in range(n_active):
                 s = active[i]
-                m = mass[s]
-                mass[s] = 0.0
+                m = mass[s]  # left until the step ends: it may be kept
                 if m == 0.0 or idle[s]:
                     continue
+                fresh = row_len[s] >= 0  # its row, if no decision it reads changed since
                 for e in range(state_decisions[s], state_decisions[s + 1]):
-                    if first[decisions[e]] > j:
-                        first[decisions[e]] = j
-                k = 0
-                dd = lookup_dec[s]
-                if dd >= 0:  # one decision decides among the labelled choices
-                    for f in range(free_start[s], free_start[s + 1]):
-                        chosen[k] = free_choice[f]
-                        k += 1
-                    x = policy[dd] - lookup_lo[s]
-                    if 0 <= x < lookup_start[s + 1] - lookup_start[s] and lookup_choice[lookup_start[s] + x] >= 0:
-                        chosen[k] = lookup_choice[lookup_start[s] + x]
-                        k += 1
-                else:
-                    for c in range(state_choices[s], state_choices[s + 1]):
-                        fits = True  # kernels._consistent, written out (a call costs more here)
-                        for jj in range(width):
-                            dec = choice_dec[c, jj]
-                            if dec < 0:
-                                break
-                            if policy[dec] != choice_val[c, jj]:
-                                fits = False
-                                break
-                        if fits:
-                            chosen[k] = c
+                    d = decisions[e]
+                    if first[d] > j:
+                        first[d] = j
+                        novel = True
+                    if changed_at[d] > cached_at[s]:
+                        fresh = False
+                if not fresh:
+                    k = 0
+                    dd = lookup_dec[s]
+                    if dd >= 0:  # one decision decides among the labelled choices
+                        for f in range(free_start[s], free_start[s + 1]):
+                            chosen[k] = free_choice[f]
                             k += 1
-                if k == 0:  # a deadlock: it keeps its probability and earns nothing
+                        x = policy[dd] - lookup_lo[s]
+                        if 0 <= x < lookup_start[s + 1] - lookup_start[s] and lookup_choice[lookup_start[s] + x] >= 0:
+                            chosen[k] = lookup_choice[lookup_start[s] + x]
+                            k += 1
+                    else:
+                        for c in range(state_choices[s], state_choices[s + 1]):
+                            fits = True  # kernels._consistent, written out (a call costs more here)
+                            for jj in range(width):
+                                dec = choice_dec[c, jj]
+                                if dec < 0:
+                                    break
+                                if policy[dec] != choice_val[c, jj]:
+                                    fits = False
+                                    break
+                            if fits:
+                                chosen[k] = c
+                                k += 1
+                    at = row_start[s]
+                    length = 0
+                    if k > 0:
+                        w = 1.0 / k
+                        for o in range(n_obj):
+                            r = reward_rows[o]
+                            earned = state_rewards[r, s]
+                            for c in range(k):
+                                earned += w * choice_rewards[r, chosen[c]]
+                            row_reward[o, s] = earned
+                        for c in range(k):
+                            choice = chosen[c]
+                            for b in range(choice_branches[choice], choice_branches[choice + 1]):
+                                row_target[at + length] = targets[b]
+                                row_probability[at + length] = w * probabilities[b]
+                                length += 1
+                    row_len[s] = length
+                    cached_at[s] = p
+                length = row_len[s]
+                if length == 0:  # a deadlock: it keeps its probability and earns nothing
                     if not last:
                         pushed[s] += m
                         if not listed[s]:
@@ -145,28 +178,32 @@ def box_cumulative(
                             following[n_next] = s
                             n_next += 1
                     continue
-                w = 1.0 / k
                 for o in range(n_obj):
                     if j < steps[o]:
-                        r = reward_rows[o]
-                        earned = state_rewards[r, s]
-                        for c in range(k):
-                            earned += w * choice_rewards[r, chosen[c]]
-                        step_totals[o] += m * earned
+                        step_totals[o] += m * row_reward[o, s]
                 if last:
                     continue
-                share = m * w
                 # the push of kernels.cumulative, written out: as a numba function (even
                 # inlined) it made the walk 20 % slower, and kernels.explore twice as slow
-                for c in range(k):
-                    choice = chosen[c]
-                    for b in range(choice_branches[choice], choice_branches[choice + 1]):
-                        t = targets[b]
-                        pushed[t] += share * probabilities[b]
-                        if not listed[t]:
-                            listed[t] = True
-                            following[n_next] = t
-                            n_next += 1
+                at = row_start[s]
+                for e in range(at, at + length):
+                    t = row_target[e]
+                    pushed[t] += m * row_probability[e]
+                    if not listed[t]:
+                        listed[t] = True
+                        following[n_next] = t
+                        n_next += 1
+            if novel and keep:
+                kept_at[j] = fill
+                kept_len[j] = n_active
+                for i in range(n_active):
+                    kept_states[fill + i] = active[i]
+                    kept_mass[fill + i] = mass[active[i]]
+                fill += n_active
+                for o in range(2 * n_obj):
+                    kept_totals[j, o] = totals[o]
+            for i in range(n_active):
+                mass[active[i]] = 0.0
             for o in range(n_obj):
                 # compensated (Kahan): adding each step's terms to one growing total lost
                 # digits (1e-13 relative on web_ids); the step's own few terms are summed plain
@@ -195,6 +232,7 @@ def box_cumulative(
             d = order[position]
             if widths[d] > 1:
                 resume = min(resume, first[d])
+                changed_at[d] = p + 1
                 digits[d] += 1
                 if digits[d] < widths[d]:
                     policy[d] = dom_vals[dom_ptr[d] + lo[d] + digits[d]]
@@ -205,8 +243,6 @@ def box_cumulative(
         for d in range(n_dec):
             if first[d] >= resume:
                 first[d] = NEVER
-        if resume >= horizon:  # nothing the walk read changes: start the last step again
-            resume = max(horizon - 1, 0)
 
 
 KEPT_LIMIT = 50_000_000
