@@ -51,6 +51,21 @@ def _whole(fam) -> Box:
     return Box(np.zeros(len(sizes), dtype=np.int64), sizes - 1)
 
 
+def _count_walks(engine: QuotientEvaluator) -> list[int]:
+    """The sizes of the boxes the engine's walker walks from now on (in this process)."""
+    walker = engine._walker
+    assert walker is not None
+    sizes: list[int] = []
+    solve = walker.solve
+
+    def counted(box, *table):
+        sizes.append(box.size)
+        return solve(box, *table)
+
+    walker.solve = counted  # type: ignore[method-assign]
+    return sizes
+
+
 @pytest.mark.parametrize("name,fam", FAMILIES, ids=[f[0] for f in FAMILIES])
 def test_a_walked_box_has_every_policy_with_its_solved_values(name, fam):
     box = _whole(fam)
@@ -90,8 +105,11 @@ def test_branch_and_bound_over_walked_boxes_finds_the_enumerated_front(workers):
     _, _, _, (_, values) = _walk(fam, _whole(fam))
     with QuotientEvaluator(fam, workers=workers, quotient=quotient) as engine:
         engine._walk = True  # as if the walk had been timed faster
+        walked = _count_walks(engine)
         result = branch_and_bound(fam, quotient, evaluate, leaf=64, adaptive=False, fronts=engine.box_fronts)
         assert engine.describe()["boxes_walked"] is True
+        if workers == 1:  # in this process: every box went through the walker
+            assert walked and sum(walked) == result.evaluated
     assert result.exact and 0 < result.evaluated <= len(values)
     _assert_same_front(result.values, values, fam)
     np.testing.assert_allclose(evaluate(result.policies), result.values, rtol=1e-12, atol=1e-15)
@@ -106,7 +124,9 @@ def test_seeds_get_the_values_of_walked_boxes():
         engine._walk = False  # as if solving had been timed faster: the seeds stay as they are
         assert engine.box_seeds(rows, solved)[1] is solved
         engine._walk = True
+        walked = _count_walks(engine)
         seeded_rows, seeded = engine.box_seeds(rows, solved)
+        assert sum(walked) == len(rows)  # each seed walked
     _, walker, domains, _ = _walk(fam, Box(np.zeros(6, dtype=np.int64), np.zeros(6, dtype=np.int64)))
     table = _domain_table(domains)
     for row, value in zip(seeded_rows, seeded):

@@ -28,7 +28,7 @@ from parley_core.quotient.solver import QuotientSolver
 
 _SOLVER: list[QuotientSolver] = []
 """Per worker process: its solver, set once by the pool's initializer."""
-_WALKER: list[BoxWalker | None] = []
+_WALKER: list[BoxWalker] = []
 """Per worker process: its box walker, made when first needed."""
 PROBE = 512
 """Policies of the first box that both box solvers are timed on (:meth:`QuotientEvaluator.box_fronts`)."""
@@ -73,9 +73,9 @@ def _box_fronts(solver: QuotientSolver, boxes: list[Box], domains, signs, n_obje
     (:class:`BoxWalker`), each box is walked as a whole instead of solved policy by policy."""
     before = solver.direct_solves
     rows_out, values_out, unsure, solved = [], [], [], 0
-    table = _domain_table(domains)
+    table = _domain_table(domains) if walker is not None else None
     for box in boxes:
-        if walker is not None:
+        if walker is not None and table is not None:
             rows, values = walker.solve(box, *table)
         else:
             rows = box_rows(box, domains)
@@ -97,7 +97,9 @@ def _box_fronts(solver: QuotientSolver, boxes: list[Box], domains, signs, n_obje
 
 def _worker_box_fronts(boxes: list[Box], domains, signs, n_objectives: int, walk: bool):
     if walk and not _WALKER:
-        _WALKER.append(BoxWalker.of(_SOLVER[0].q))
+        walker = BoxWalker.of(_SOLVER[0].q)
+        assert walker is not None  # the parent walks the same quotient
+        _WALKER.append(walker)
     return _box_fronts(_SOLVER[0], boxes, domains, signs, n_objectives, _WALKER[0] if walk else None)
 
 

@@ -95,8 +95,6 @@ def box_cumulative(
     mass[initial] = 1.0
     active[0] = initial
     n_active = 1
-    for o in range(2 * n_obj):
-        totals[o] = 0.0
     for p in range(out.shape[0]):
         if p > 0 and resume < horizon:  # (at the horizon: nothing the walk read changed)
             n_active = 0  # a finished walk leaves no probability anywhere
@@ -246,8 +244,8 @@ def box_cumulative(
 
 
 KEPT_LIMIT = 50_000_000
-"""The most (state, step) pairs a walk may keep (16 bytes each): beyond, boxes are solved
-policy by policy."""
+"""The most (state, kept step) pairs a walk may hold, 16 bytes each: a state for each
+decision's first consultation and one more. Beyond, boxes are solved policy by policy."""
 
 
 class BoxWalker:
@@ -271,10 +269,11 @@ class BoxWalker:
     def of(cls, quotient: Quotient) -> BoxWalker | None:
         """A walker, or None where the objectives are not all ``C<=k`` (or the walk would keep
         more than :data:`KEPT_LIMIT` pairs)."""
-        steps = [o.steps for o in quotient.objectives if o is not None and o.kind is KernelKind.CUMULATIVE]
-        if not steps or len(steps) < len(quotient.objectives):
+        kinds = [o is not None and o.kind is KernelKind.CUMULATIVE for o in quotient.objectives]
+        if not kinds or not all(kinds):
             return None
-        if quotient.states * max(steps) > KEPT_LIMIT:
+        decisions = int(quotient.choice_dec.max(initial=-1)) + 1
+        if quotient.states * (decisions + 1) > KEPT_LIMIT:
             return None
         return cls(quotient)
 
