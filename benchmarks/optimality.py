@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import time
+from collections import deque
 
 import numpy as np
 
@@ -144,8 +145,12 @@ def enumerated_front(prep: Prepared, workers: int) -> tuple[np.ndarray, float]:
     start = time.perf_counter()
     kept = []
     with QuotientEvaluator(fam, workers=workers) as engine:
+        inflight = deque()  # two batches at a time keep the workers busy
         for first in range(0, len(boxes), 16):
-            kept.append(engine.box_fronts(boxes[first : first + 16], signs)[1])
+            inflight.append(engine.submit_box_fronts(boxes[first : first + 16], signs))
+            if len(inflight) > 2:
+                kept.append(inflight.popleft().result().values)
+        kept.extend(batch.result().values for batch in inflight)
     return np.vstack(kept), time.perf_counter() - start
 
 

@@ -8,6 +8,8 @@ dozen rows instead of 4,096.
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 from attrs import field, frozen
 
@@ -25,6 +27,40 @@ class Box:
     @property
     def size(self) -> int:
         return int(np.prod(self.hi - self.lo + 1, dtype=np.int64))
+
+
+@frozen(kw_only=True)
+class BoxValues:
+    """What an evaluator gives back for boxes: the rows of each box's own front and their
+    values (in box order), how many policies it evaluated, and the seconds that cost (wall
+    time, shared over the processes that solved them)."""
+
+    rows: np.ndarray = field(eq=False)
+    values: np.ndarray = field(eq=False)
+    evaluated: int
+    seconds: float
+
+
+class Pending(Protocol):
+    """Boxes being evaluated: ``done()`` and ``result()`` as a
+    :class:`concurrent.futures.Future`'s."""
+
+    def done(self) -> bool: ...
+
+    def result(self) -> BoxValues: ...
+
+
+@frozen
+class Ready:
+    """Boxes already evaluated (in this process)."""
+
+    value: BoxValues
+
+    def done(self) -> bool:
+        return True
+
+    def result(self) -> BoxValues:
+        return self.value
 
 
 def box_rows(box: Box, domains: list[np.ndarray]) -> np.ndarray:

@@ -13,7 +13,10 @@ few bounds (both times measured as the search goes), because where fronts are de
 (web_ids, tas) splitting rarely prunes. Evaluated nodes go to the evaluator as whole boxes
 where it can take them (:meth:`~parley_core.evaluate.quotient.QuotientEvaluator.box_fronts`:
 each box enumerated where it is solved and cut to its own front, so only a few rows a box
-travel between processes). When no node is left, the archive's non-dominated values are the whole
+travel between processes), and are solved there while the next nodes are bounded here: a
+node is pruned against the values found so far, which is sound whatever is still pending.
+Until the first leaf is evaluated the nodes are taken depth first, so that the adaptive
+leaf size is known before the family is cut finer than it needs. When no node is left, the archive's non-dominated values are the whole
 Pareto front (as a set of values); with a time limit the open nodes' ideal points join the
 front in the bound.
 """
@@ -24,12 +27,13 @@ import heapq
 import itertools
 import math
 import time
+from collections import deque
 from collections.abc import Callable
 
 import numpy as np
 from attrs import field, frozen
 
-from parley_core.boxes import FLOOR, Box, box_rows, local_front
+from parley_core.boxes import FLOOR, Box, BoxValues, Pending, Ready, box_rows, local_front
 from parley_core.model import Family
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
@@ -49,6 +53,9 @@ BATCH = 4096
 """Policies handed to the evaluator at a time."""
 BOX_BATCH = 65536
 """Policies of whole boxes handed to a box evaluator at a time."""
+IN_FLIGHT = 2
+"""Batches an evaluator may be solving while nodes are bounded: the workers always have the
+next batch when they finish one."""
 TOLERANCE = 1e-9
 """The front is exact to this: every policy of the family is weakly dominated by a front
 value once each objective is given this much (of the value's size, at least 1)."""
@@ -144,7 +151,7 @@ def branch_and_bound(
     adaptive: bool = True,
     root_cuts: tuple[tuple[np.ndarray, float], ...] = (),
     bounds: RelaxedObjectives | None = None,
-    fronts: Callable[[list[Box], np.ndarray], tuple[np.ndarray, np.ndarray, int]] | None = None,
+    fronts: Callable[[list[Box], np.ndarray], Pending] | None = None,
 ) -> ExactResult:
     """The family's Pareto front (see the module docstring). ``evaluate`` maps rows of decision
     values to objective values; ``seeds`` (rows, values) start the archive; ``progress``
@@ -153,10 +160,12 @@ def branch_and_bound(
     policy is known to satisfy; ``bounds`` the family's relaxed objectives, if already built;
     ``adaptive`` raises ``leaf`` to what costs :data:`LEAF_COST` bounds to evaluate (measured
     as the search goes: which nodes are split then depends on timing, the front's values do
-    not); ``fronts`` evaluates whole boxes given the sign space and returns only each box's own
-    non-dominated (rows, values) and the number evaluated
-    (:meth:`~parley_core.evaluate.quotient.QuotientEvaluator.box_fronts`), else ``evaluate``
-    gets every row."""
+    not); ``fronts`` starts evaluating whole boxes given the sign space and returns a pending
+    :class:`~parley_core.boxes.BoxValues` with only each box's own non-dominated rows
+    (:meth:`~parley_core.evaluate.quotient.QuotientEvaluator.submit_box_fronts`), else
+    ``evaluate`` gets every row. Up to :data:`IN_FLIGHT` batches are evaluated while nodes
+    are bounded; a node is pruned against the values found so far, which is sound whatever
+    is still pending (an archive with fewer values dominates less)."""
     start = time.perf_counter()
     bounds = bounds or RelaxedObjectives(family, quotient)
     signs = bounds.signs
@@ -203,25 +212,40 @@ def branch_and_bound(
         per_policy = max(spent["policy"] / spent["policies"], 1e-9)
         return max(leaf, min(LARGEST_LEAF, int(LEAF_COST * per_bound / per_policy)))
 
-    def flush() -> None:
+    inflight: deque[Pending] = deque()
+
+    def take(batch: BoxValues) -> None:
         nonlocal evaluated, unknown
+        values = np.asarray(batch.values, dtype=float).reshape(len(batch.rows), len(signs))
+        spent["policy"] += batch.seconds
+        spent["policies"] += batch.evaluated
+        evaluated += batch.evaluated
+        unknown += int(np.isnan(values).any(axis=1).sum())
+        admit(batch.rows, values)
+
+    def harvest(wait: bool) -> None:
+        # in the order submitted, so that of equal values the archive keeps the same policy
+        while inflight and (wait or inflight[0].done()):
+            take(inflight.popleft().result())
+
+    def flush() -> None:
         if not pending:
             return
-        began = time.perf_counter()
         if fronts is not None:
-            rows, values, count = fronts(list(pending), signs)
-            values = np.asarray(values, dtype=float).reshape(len(rows), len(signs))
+            inflight.append(fronts(list(pending), signs))
         else:
+            began = time.perf_counter()
             rows = np.vstack([box_rows(box, domains) for box in pending])
             values = np.asarray(evaluate(rows), dtype=float).reshape(len(rows), len(signs))
-            count = len(rows)
+            seconds = time.perf_counter() - began
+            inflight.append(Ready(BoxValues(rows=rows, values=values, evaluated=len(rows), seconds=seconds)))
         pending.clear()
         spent["pending"] = 0
-        spent["policy"] += time.perf_counter() - began
-        spent["policies"] += count
-        evaluated += count
-        unknown += int(np.isnan(values).any(axis=1).sum())
-        admit(rows, values)
+        # the first batch is waited for: its time is what the adaptive leaf size is measured by
+        if not spent["policies"]:
+            harvest(wait=True)
+        while len(inflight) > IN_FLIGHT:
+            take(inflight.popleft().result())
 
     def queue(lo: np.ndarray, hi: np.ndarray) -> None:
         box = Box(lo, hi)
@@ -242,6 +266,9 @@ def branch_and_bound(
         if time_limit is not None and time.perf_counter() - start > time_limit:
             stopped_by = "time"
             break
+        harvest(wait=False)
+        if fronts is not None and not inflight:  # the evaluator is idle: it gets what is pending
+            flush()
         _, _, node = heapq.heappop(stack)
         nodes += 1
         share = node.size()
@@ -290,10 +317,14 @@ def branch_and_bound(
         upper_lo, lower_hi = lo.copy(), hi.copy()
         upper_lo[d], lower_hi[d] = middle + 1, middle
         resolve(share - math.prod(int(w) for w in width))  # what collapsed decisions repeat
-        priority = -depth(ideal, corners, scale)
-        heapq.heappush(stack, (priority, next(counter), Node(upper_lo, hi, ideal, tuple(cuts))))
-        heapq.heappush(stack, (priority, next(counter), Node(lo, lower_hi, ideal, tuple(cuts))))
+        # until a first leaf is evaluated, depth first: its time sets the adaptive leaf size
+        # (nodes bounded best first before that would be split far finer than they need,
+        # while the workers wait); of equal priorities the latest first
+        priority = -depth(ideal, corners, scale) if spent["policies"] else -math.inf
+        heapq.heappush(stack, (priority, -next(counter), Node(upper_lo, hi, ideal, tuple(cuts))))
+        heapq.heappush(stack, (priority, -next(counter), Node(lo, lower_hi, ideal, tuple(cuts))))
     flush()
+    harvest(wait=True)
     rows = np.array(kept_rows, dtype=np.int64).reshape(-1, len(domains))
     values = np.array(kept_values, dtype=float).reshape(-1, len(signs))
     # the archive drops what a later value dominates: keep the policies whose value it still holds

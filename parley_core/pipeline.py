@@ -391,7 +391,7 @@ def _refine(family: Family, engine: Evaluator, result: SearchResult, seconds: fl
         progress=progress,
         root_cuts=found.cuts,
         bounds=bounds,
-        fronts=getattr(engine, "box_fronts", None),
+        fronts=getattr(engine, "submit_box_fronts", None),
     )
     return exact, seeds[1]
 

@@ -140,7 +140,7 @@ def test_box_fronts_give_the_same_front(workers):
         # solved as ``evaluate`` solves (tests/test_forward.py walks them): values from two
         # solvers that agree to rounding can differ in which of two tied policies is kept
         engine._walk = False
-        result = branch_and_bound(fam, quotient, evaluate, leaf=64, adaptive=False, fronts=engine.box_fronts)
+        result = branch_and_bound(fam, quotient, evaluate, leaf=64, adaptive=False, fronts=engine.submit_box_fronts)
     assert result.exact and 0 < result.evaluated <= len(values)
     _assert_same_front(result.values, values, fam)
     np.testing.assert_allclose(evaluate(result.policies), result.values, rtol=1e-12, atol=1e-15)

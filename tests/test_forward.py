@@ -106,7 +106,7 @@ def test_branch_and_bound_over_walked_boxes_finds_the_enumerated_front(workers):
     with QuotientEvaluator(fam, workers=workers, quotient=quotient) as engine:
         engine._walk = True  # as if the walk had been timed faster
         walked = _count_walks(engine)
-        result = branch_and_bound(fam, quotient, evaluate, leaf=64, adaptive=False, fronts=engine.box_fronts)
+        result = branch_and_bound(fam, quotient, evaluate, leaf=64, adaptive=False, fronts=engine.submit_box_fronts)
         assert engine.describe()["boxes_walked"] is True
         if workers == 1:  # in this process: every box went through the walker
             assert walked and sum(walked) == result.evaluated

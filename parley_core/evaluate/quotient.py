@@ -16,7 +16,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from parley_core.boxes import Box, box_rows, local_front
+from parley_core.boxes import Box, BoxValues, Ready, box_rows, local_front
 from parley_core.evaluate.pool import default_workers, spawn_pool, stop_pool
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.model import Family
@@ -70,7 +70,9 @@ def _box_fronts(solver: QuotientSolver, boxes: list[Box], domains, signs, n_obje
     """Each box's policies solved and cut to the box's own front (:func:`.local_front`):
     (rows, values) of the fronts, in box order, and the rows whose values the quotient could
     not certify (for Storm), the policies solved and the direct solves. With a ``walker``
-    (:class:`BoxWalker`), each box is walked as a whole instead of solved policy by policy."""
+    (:class:`BoxWalker`), each box is walked as a whole instead of solved policy by policy;
+    last, the seconds it took."""
+    began = time.perf_counter()
     before = solver.direct_solves
     rows_out, values_out, unsure, solved = [], [], [], 0
     table = _domain_table(domains) if walker is not None else None
@@ -92,6 +94,7 @@ def _box_fronts(solver: QuotientSolver, boxes: list[Box], domains, signs, n_obje
         np.vstack([np.zeros((0, width), dtype=np.int64), *unsure]),
         solved,
         solver.direct_solves - before,
+        time.perf_counter() - began,
     )
 
 
@@ -120,6 +123,24 @@ def _offsets(boxes: list[Box]):
     for box in boxes:
         yield start, box
         start += box.size
+
+
+class PendingFronts:
+    """Box fronts the workers are solving (:meth:`QuotientEvaluator.submit_box_fronts`)."""
+
+    def __init__(self, evaluator: QuotientEvaluator, futures: list) -> None:
+        self._evaluator = evaluator
+        self._futures = futures
+        self._value: BoxValues | None = None
+
+    def done(self) -> bool:
+        return self._value is not None or all(f.done() for f in self._futures)
+
+    def result(self) -> BoxValues:
+        if self._value is None:
+            parts = [f.result() for f in self._futures]
+            self._value = self._evaluator._merge(parts, self._evaluator.workers)
+        return self._value
 
 
 class QuotientEvaluator:
@@ -195,20 +216,30 @@ class QuotientEvaluator:
             values[uncertain] = self._storm_values(policies[uncertain])
         return values, consulted
 
-    def box_fronts(self, boxes: list[Box], signs: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    def box_fronts(self, boxes: list[Box], signs: np.ndarray) -> BoxValues:
         """The policies of ``boxes`` evaluated where they are solved, each box cut to its own
-        non-dominated values in sign space ``signs`` (1 maximised, -1 minimised): (rows,
-        values) in box order and the number of policies evaluated. What branch and bound
-        needs of a box, without carrying every value of it between processes. Values the
-        quotient cannot give (an objective it leaves to Storm, an uncertified solve) are
-        Storm's, as in :meth:`evaluate`."""
+        non-dominated values in sign space ``signs`` (1 maximised, -1 minimised): what branch
+        and bound needs of a box, without carrying every value of it between processes.
+        Values the quotient cannot give (an objective it leaves to Storm, an uncertified
+        solve) are Storm's, as in :meth:`evaluate`."""
+        return self.submit_box_fronts(boxes, signs).result()
+
+    def submit_box_fronts(self, boxes: list[Box], signs: np.ndarray) -> Ready | PendingFronts:
+        """:meth:`box_fronts` without waiting: over workers, the boxes are solved while the
+        caller goes on (branch and bound bounds its next nodes meanwhile); ``result()``
+        waits for them."""
+        began = time.perf_counter()
         domains = [np.array(d.service.values, dtype=np.int64) for d in self.family.decisions]
         n_objectives = len(self.family.objectives)
         if self.fallback:  # Storm's objectives: every policy's values are needed here
             rows = np.vstack([box_rows(b, domains) for b in boxes])
             values = self.evaluate(rows)
             keep = np.concatenate([o + local_front(values[o : o + b.size], signs) for o, b in _offsets(boxes)])
-            return rows[keep], values[keep], len(rows)
+            return Ready(
+                BoxValues(
+                    rows=rows[keep], values=values[keep], evaluated=len(rows), seconds=time.perf_counter() - began
+                )
+            )
         walk = self._walks(boxes[0], domains) if boxes else False
         if self.workers > 1 and sum(b.size for b in boxes) >= 64:
             pool = self._executor()
@@ -218,9 +249,13 @@ class QuotientEvaluator:
             futures = [
                 pool.submit(_worker_box_fronts, share, domains, signs, n_objectives, walk) for share in shares if share
             ]
-            parts = [f.result() for f in futures]
-        else:
-            parts = [_box_fronts(self.solver, boxes, domains, signs, n_objectives, self._walker if walk else None)]
+            return PendingFronts(self, futures)
+        part = _box_fronts(self.solver, boxes, domains, signs, n_objectives, self._walker if walk else None)
+        return Ready(self._merge([part], 1))
+
+    def _merge(self, parts: list[tuple], processes: int) -> BoxValues:
+        """The workers' parts as one :class:`BoxValues`, with Storm's values for the rows the
+        quotient could not certify."""
         self.direct_solves += sum(p[4] for p in parts)
         rows = np.vstack([p[0] for p in parts])
         values = np.vstack([p[1] for p in parts])
@@ -228,7 +263,8 @@ class QuotientEvaluator:
         if len(unsure):  # Storm values the policies the quotient could not certify
             self.uncertified += len(unsure)
             rows, values = np.vstack([rows, unsure]), np.vstack([values, self._storm_values(unsure)])
-        return rows, values, sum(p[3] for p in parts)
+        seconds = sum(p[5] for p in parts) / max(1, min(processes, len(parts)))
+        return BoxValues(rows=rows, values=values, evaluated=sum(p[3] for p in parts), seconds=seconds)
 
     def box_seeds(self, rows: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Seeds for branch and bound over :meth:`box_fronts` (policies and their values from
