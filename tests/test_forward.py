@@ -1,8 +1,8 @@
 """Walking whole boxes forward on the quotient (:mod:`parley_core.quotient.forward`) gives
 every policy's step-bounded rewards as solving it alone does: on the case studies and on
 hand-written models with per-policy deadlocks, overlapping guards, synchronised decisions
-and two step bounds; resuming from a shared prefix changes no bit; and branch and bound over
-walked boxes finds the enumerated front."""
+and two step bounds; a policy walked alone and in a block of others gives the same bits;
+and branch and bound over walked boxes finds the enumerated front."""
 
 from __future__ import annotations
 
@@ -78,7 +78,7 @@ def test_a_walked_box_has_every_policy_with_its_solved_values(name, fam):
 
 
 @pytest.mark.parametrize("name,fam", FAMILIES, ids=[f[0] for f in FAMILIES])
-def test_resuming_a_shared_prefix_changes_no_bit(name, fam):
+def test_a_policy_alone_and_in_a_block_gives_the_same_bits(name, fam):
     box = _whole(fam)
     _, walker, domains, (rows, values) = _walk(fam, box)
     table = _domain_table(domains)

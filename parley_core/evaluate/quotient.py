@@ -100,7 +100,7 @@ def _box_fronts(solver: QuotientSolver, boxes: list[Box], domains, signs, n_obje
 
 def _worker_box_fronts(boxes: list[Box], domains, signs, n_objectives: int, walk: bool):
     if walk and not _WALKER:
-        walker = BoxWalker.of(_SOLVER[0].q)
+        walker = BoxWalker.of(_SOLVER[0].q, max((len(d) for d in domains), default=1))
         assert walker is not None  # the parent walks the same quotient
         _WALKER.append(walker)
     return _box_fronts(_SOLVER[0], boxes, domains, signs, n_objectives, _WALKER[0] if walk else None)
@@ -171,7 +171,8 @@ class QuotientEvaluator:
         """Policies whose sweeps could not be certified and were solved directly."""
         self.uncertified = 0
         """Policies no solve of the quotient could certify, checked by Storm instead."""
-        self._walker = BoxWalker.of(self.quotient) if not self.fallback else None
+        widest = max((len(d.service.values) for d in family.decisions), default=1)
+        self._walker = BoxWalker.of(self.quotient, widest) if not self.fallback else None
         self._walk: bool | None = None
         """Whether :meth:`box_fronts` walks boxes (None: not decided yet)."""
 
