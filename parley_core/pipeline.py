@@ -392,6 +392,7 @@ def _refine(family: Family, engine: Evaluator, result: SearchResult, seconds: fl
         root_cuts=found.cuts,
         bounds=bounds,
         fronts=getattr(engine, "submit_box_fronts", None),
+        whole=bool(getattr(engine, "walks_boxes", lambda: False)()),
     )
     return exact, seeds[1]
 

@@ -282,6 +282,13 @@ class QuotientEvaluator:
         walked = np.vstack([self._walker.solve(Box(i, i), *table)[1] for i in index])
         return rows, walked
 
+    def walks_boxes(self) -> bool:
+        """Whether this evaluator walks boxes in blocks over their widest decision
+        (:meth:`_walks`, decided on the whole family if no box was given before)."""
+        domains = [np.array(d.service.values, dtype=np.int64) for d in self.family.decisions]
+        whole = Box(np.zeros(len(domains), dtype=np.int64), np.array([len(d) - 1 for d in domains], dtype=np.int64))
+        return self._walker is not None and self._walks(whole, domains)
+
     def _walks(self, box: Box, domains: list[np.ndarray]) -> bool:
         """Whether boxes are walked (:class:`BoxWalker`) rather than solved policy by policy:
         decided once, on the first box, by timing both on :data:`PROBE` of its policies.
