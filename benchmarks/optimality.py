@@ -16,18 +16,25 @@ Three tables, printed as Markdown:
 
 Between 1 and 2, ``parley exact`` on web_ids and tas with their defaults (2 workers, every
 front value Storm's), against enumerating every policy on the quotient (``--no-enumeration``
-leaves that out: about 100 s for web_ids and 5 minutes for tas).
+leaves that out: about 20 s for web_ids and 80 s for tas).
+
+After 2, robot_grid's full families (generated 5x5 and 6x6 maps, the published map_10; intervals
+1..10): the gap branch and bound leaves after ``--robot-time`` seconds (10 minutes by default,
+the issue's budget; ``--only-robot`` prints only this table).
 
 Usage: python benchmarks/optimality.py [--seeds 10] [--bound-time 60] [--skip-gaps | --only-gaps]
        [--skip-full | --only-full] [--no-enumeration] [--time-limit 600]
+       [--robot-time 600 | --only-robot]
 """
 
 from __future__ import annotations
 
 import argparse
 import itertools
+import math
 import time
 from collections import deque
+from pathlib import Path
 
 import numpy as np
 
@@ -53,12 +60,23 @@ FULL = [
     ("web_ids (defaults)", "web_ids", []),
     ("tas (defaults)", "tas", []),
 ]
+REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference" / "parley2024"
 GAPS = [
     ("robot_grid (10x10)", "robot_grid", []),
     ("robot_grid 5x5", "robot_grid", ["size=5", "seed=1"]),
     ("web_ids", "web_ids", []),
     ("tas", "tas", []),
     ("turtlebot", "turtlebot", []),
+    (
+        "turtlebot, the paper's motions",
+        "turtlebot",
+        [f"model={REFERENCE / 'models' / 'turtlebot' / 'model.prism'}"],
+    ),
+]
+ROBOT = [
+    ("robot_grid 5x5 (intervals 1..10)", ["size=5", "seed=1"]),
+    ("robot_grid 6x6 (intervals 1..10)", ["size=6", "seed=1"]),
+    ("robot_grid, published map_10", [f"map={REFERENCE / 'maps' / 'map_10.csv'}"]),
 ]
 
 
@@ -219,6 +237,39 @@ def gap_table(bound_time: float) -> None:
         print("| " + " | ".join(row) + " |", flush=True)
 
 
+def robot_table(seconds: float) -> None:
+    """robot_grid's full families: branch and bound after the default search for at most
+    ``seconds`` (``parley run robot_grid --bound refine --bound-time S``), the gap it leaves
+    against the Pareto outer approximation's."""
+    print()
+    print(
+        f"| family | decisions | policies | Pareto outer gap | gap after {seconds:g} s of branch and bound "
+        "| exact | nodes | pruned | evaluated | wall (s) |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for label, options in ROBOT:
+        case = load_registry().get("robot_grid")
+        prep = prepare(case, case.options(options))
+        directions = [o.direction for o in prep.family.objectives]
+        size = math.prod(len(d.service.values) for d in prep.family.decisions)
+        gaps = []
+        for mode in ("pareto", "refine"):
+            start = time.perf_counter()
+            result = run(prep, SearchSettings(seed=1), bound=mode, bound_time=seconds, verify=False)
+            wall = time.perf_counter() - start
+            assert result.bound is not None
+            front_hv = metrics.hypervolume(np.array(result.front.values), directions, result.reference)
+            bound_hv = result.bound.hypervolume(result.reference)
+            gaps.append(f"{100 * (bound_hv - front_hv) / bound_hv:.2f}%")
+        details = result.bound.details
+        print(
+            f"| {label} | {len(prep.family.decisions)} | {size:.2e} | {gaps[0]} | {gaps[1]} | "
+            f"{'yes' if result.bound.exact else 'no'} | {details['nodes']} | {details['pruned']} | "
+            f"{details['evaluated']} | {wall:.0f} |",
+            flush=True,
+        )
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", type=int, default=10)
@@ -229,7 +280,14 @@ def main() -> int:
     parser.add_argument("--only-full", action="store_true")
     parser.add_argument("--no-enumeration", action="store_true", help="do not enumerate the full families")
     parser.add_argument("--time-limit", type=float, default=600.0, help="parley exact's limit on the full families")
+    parser.add_argument(
+        "--robot-time", type=float, default=600.0, help="branch and bound's budget on robot_grid's full families"
+    )
+    parser.add_argument("--only-robot", action="store_true", help="only the robot_grid table")
     args = parser.parse_args()
+    if args.only_robot:
+        robot_table(args.robot_time)
+        return 0
     if args.only_full:
         full_table(args.time_limit, not args.no_enumeration)
         return 0
@@ -239,6 +297,7 @@ def main() -> int:
         full_table(args.time_limit, not args.no_enumeration)
     if not args.skip_gaps:
         gap_table(args.bound_time)
+        robot_table(args.robot_time)
     return 0
 
 
