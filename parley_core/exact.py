@@ -58,7 +58,10 @@ IN_FLIGHT = 2
 next batch when they finish one."""
 TOLERANCE = 1e-9
 """The front is exact to this: every policy of the family is weakly dominated by a front
-value once each objective is given this much (of the value's size, at least 1)."""
+value once each objective is given this much (of the value's size, at least 1), and
+:data:`NOISE` more for the ties at the level of float noise that :func:`robust_front` drops."""
+NOISE = 1e-12
+"""Two values closer than this (of their size, at least 1) in an objective are tied there."""
 
 
 class Archive:
@@ -109,6 +112,33 @@ def depth(ideal: np.ndarray, corners: np.ndarray, scale: np.ndarray) -> float:
         return 0.0
     gaps = np.minimum((ideal[None, :] - np.maximum(corners, FLOOR)) / scale, 1e300)
     return float(gaps.min(axis=1).max())
+
+
+def robust_front(points: np.ndarray) -> np.ndarray:
+    """Indices (sorted) of the points (sign space, maximised) that no kept point dominates
+    beyond :data:`NOISE`: a point goes when a kept one is no worse than it by more than that
+    (of its size, at least 1) in every objective and better by more in one.
+    Such ties at the level of float noise (a probability of 0.99999999999999 beside
+    0.99999999999998 with a much worse second objective) are not two front values. Every
+    point dropped is covered by a kept one to within NOISE; the points are
+    taken best first (by their objectives scaled to the points' spread), so that a dominating
+    point is kept before what it dominates."""
+    points = np.maximum(np.asarray(points, dtype=float), FLOOR)
+    if len(points) < 2:
+        return np.arange(len(points))
+    finite = np.where(np.isfinite(points), points, 0.0)
+    slack = NOISE * np.maximum(1.0, np.abs(finite))
+    spread = finite.max(axis=0) - finite.min(axis=0)
+    key = (finite / np.where(spread > 0, spread, 1.0)).sum(axis=1)
+    kept: list[int] = []
+    for i in np.argsort(-key, kind="stable"):
+        if kept:
+            best = points[kept]
+            beyond = (best >= points[i] - slack[i]).all(axis=1) & (best > points[i] + slack[i]).any(axis=1)
+            if beyond.any():
+                continue
+        kept.append(int(i))
+    return np.sort(np.array(kept, dtype=np.int64))
 
 
 @frozen
@@ -340,6 +370,8 @@ def branch_and_bound(
     # the archive drops what a later value dominates: keep the policies whose value it still holds
     alive = np.array([(archive.points == np.maximum(v * signs, FLOOR)).all(axis=1).any() for v in values], dtype=bool)
     rows, values = rows[alive.reshape(-1)], values[alive.reshape(-1)]
+    kept = robust_front(values * signs)
+    rows, values = rows[kept], values[kept]
     open_points = [np.where(n.ideal <= FLOOR, -np.inf, n.ideal) * signs for _, _, n in stack if n.ideal is not None]
     if any(n.ideal is None for _, _, n in stack):
         everything = bounds.restrict(np.zeros(len(domains), dtype=np.int64), bounds.sizes - 1)

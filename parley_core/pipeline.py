@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from attrs import field, frozen
 
-from parley_core import metrics, robust
+from parley_core import metrics, robust, run_bounds
 from parley_core.augment import augment
 from parley_core.casestudy import CaseStudy
 from parley_core.constraints import meets
@@ -189,7 +189,8 @@ def run(
     """Baselines, search, verification, bound; returns everything the report needs.
 
     ``bound``: "pareto" (default) an outer approximation of the Pareto curve of the
-    quotient's relaxation, "ideal" its ideal point: certified outer bounds of the family
+    quotient's relaxation, "ideal" its ideal point, "belief" the outer approximation on the
+    ideal point of the relaxation read as a POMDP (:mod:`parley_core.belief`): certified outer bounds of the family
     (:mod:`parley_core.bound`); "refine" runs branch
     and bound over the decisions' ranges after the search (:mod:`parley_core.exact`) for at
     most ``bound_time`` seconds (None: until the front is proven exact), whose policies join
@@ -240,9 +241,9 @@ def run(
         searched_values = result.values
         if bound == "refine" and not result.interrupted:
             with _timed(timings, "bound"):
-                cheap = _outer(family, engine, "pareto")
+                cheap = run_bounds.outer(family, engine, "pareto")
                 outer = cheap[0]
-                refined, searched_values = _refine(family, engine, result, bound_time, reporter, cheap)
+                refined, searched_values = run_bounds.refine(family, engine, result, bound_time, reporter, cheap)
     except BaseException:
         engine.close(abort=True)
         raise
@@ -319,7 +320,11 @@ def run(
     elif bound != "none":
         with _timed(timings, "bound"):
             reporter.stage("bound")
-            found = robust.bound(scenarios, engine, bound, _outer) if scenarios else _outer(family, engine, bound)[0]
+            found = (
+                robust.bound(scenarios, engine, bound, run_bounds.outer)
+                if scenarios
+                else run_bounds.outer(family, engine, bound)[0]
+            )
     reference = metrics.reference_point(family.objectives, np.array(front.values), np.array(baseline.values))
     describe = getattr(engine, "describe", None)
     return RunResult(
@@ -340,61 +345,6 @@ def run(
         front_scenarios=front_each,
         warm_start=len(warm),
     )
-
-
-def family_bound(family: Family, method: str = "pareto") -> Bound:
-    """A family's cheap certified outer bound on its own ("pareto" or "ideal", as a run's
-    ``bound``): what a campaign stores once per instance."""
-    return _outer(family, None, method)[0]
-
-
-def _outer(family: Family, engine: Evaluator | None, method: str):
-    """The cheap bound (the ideal point, cut by weighted sums for "pareto") and the family's
-    relaxed objectives it was computed on, for branch and bound to reuse."""
-    from parley_core.bound import ideal_point, pareto_outer
-    from parley_core.quotient.bounds import RelaxedObjectives
-    from parley_core.quotient.coloring import build_quotient
-
-    quotient = getattr(engine, "quotient", None) or build_quotient(family)
-    bounds = RelaxedObjectives(family, quotient)
-    found = ideal_point(family, quotient, bounds)
-    return (pareto_outer(family, quotient, found, bounds) if method == "pareto" else found), bounds
-
-
-def _refine(family: Family, engine: Evaluator, result: SearchResult, seconds: float | None, reporter: Reporter, outer):
-    """Branch and bound after the search, seeded with everything the search evaluated and
-    started from the cheap bound's half-spaces (``outer``: what :func:`_outer` returns); with
-    the seeds' values as branch and bound took them (:meth:`QuotientEvaluator.box_seeds`)."""
-    from parley_core.exact import branch_and_bound
-
-    found, bounds = outer
-    steps = 1000
-    reporter.stage("branch and bound", steps)
-    done = 0
-
-    def progress(fraction: float) -> None:
-        nonlocal done
-        now = min(steps, int(fraction * steps))
-        if now > done:
-            reporter.advance(now - done)
-            done = now
-
-    seeds = (result.policies, result.values)
-    if hasattr(engine, "box_seeds"):
-        seeds = engine.box_seeds(*seeds)
-    exact = branch_and_bound(
-        family,
-        bounds.quotient,
-        engine.evaluate,
-        seeds=seeds,
-        time_limit=seconds,
-        progress=progress,
-        root_cuts=found.cuts,
-        bounds=bounds,
-        fronts=getattr(engine, "submit_box_fronts", None),
-        whole=bool(getattr(engine, "walks_boxes", lambda: False)()),
-    )
-    return exact, seeds[1]
 
 
 def _best(column: np.ndarray, objective) -> float:

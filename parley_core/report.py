@@ -99,7 +99,9 @@ def optimality(result: RunResult, front_hypervolume: float) -> dict[str, Any] | 
         "exact": bound.exact,
         "bound_points": len(bound.points),
         "seconds": round(bound.seconds, 4),
-        **({"search": bound.details} if bound.details else {}),
+        # branch and bound's nodes and policies; the belief bound's values (MDP and POMDP) per objective
+        **({"search": search} if (search := {k: v for k, v in bound.details.items() if k != "belief"}) else {}),
+        **({"belief": bound.details["belief"]} if "belief" in bound.details else {}),
     }
 
 

@@ -20,7 +20,7 @@ from parley_core.bound import refined_bound
 from parley_core.boxes import Box, box_rows, local_front
 from parley_core.cli import app
 from parley_core.evaluate.quotient import QuotientEvaluator
-from parley_core.exact import Archive, branch_and_bound
+from parley_core.exact import Archive, branch_and_bound, robust_front
 from parley_core.pipeline import make_family
 from parley_core.quotient.coloring import build_quotient
 from parley_core.quotient.solver import QuotientSolver
@@ -93,8 +93,9 @@ CASES = list(_cases())
 def test_branch_and_bound_equals_enumeration(name, fam):
     quotient, evaluate = _solver(fam)
     _, values = _enumerate(fam, evaluate)
-    for leaf, adaptive in ((4, False), (32, False), (4, True)):
-        result = branch_and_bound(fam, quotient, evaluate, leaf=leaf, adaptive=adaptive)
+    # ``whole`` (a node's widest decision kept whole) splits other decisions first
+    for leaf, adaptive, whole in ((4, False, False), (32, False, False), (4, True, False), (4, False, True)):
+        result = branch_and_bound(fam, quotient, evaluate, leaf=leaf, adaptive=adaptive, whole=whole)
         assert result.exact and result.stopped_by == "complete"
         _assert_same_front(result.values, values, fam)
         # every policy returned has the value it claims
@@ -223,3 +224,14 @@ def test_a_refined_run_bound_is_sound_and_no_looser_than_the_outer_one():
     assert refined.dominates(values).all() and outer.dominates(values).all()
     # the refined bound lies within the outer one
     assert outer.dominates(refined.points).all()
+
+
+def test_ties_at_the_level_of_float_noise_are_not_two_front_values():
+    # sign space (maximised): a probability 1 - 1.4e-14 at cost 5.5 beside 1 - 1.2e-14 at
+    # cost 6.625 is one front value; 1e-6 better at cost 6.625 is two
+    noise = np.array([[1 - 1.4e-14, -5.5], [1 - 1.2e-14, -6.625], [0.0, -4.0]])
+    assert robust_front(noise).tolist() == [0, 2]
+    real = np.array([[1 - 1e-6, -5.5], [1.0, -6.625], [0.0, -4.0]])
+    assert robust_front(real).tolist() == [0, 1, 2]
+    # equal values are both kept (the archive keeps the first of them before this)
+    assert robust_front(np.array([[1.0, -2.0], [1.0, -2.0]])).tolist() == [0, 1]

@@ -296,8 +296,8 @@ def execute(
 
     kind = EvaluatorKind.of(evaluator)
     path = VerifyPath.of(verify_with)
-    if bound not in ("pareto", "ideal", "refine", "none"):
-        raise OptionError(f"unknown --bound {bound!r}; valid: pareto, ideal, refine, none")
+    if bound not in ("pareto", "ideal", "belief", "refine", "none"):
+        raise OptionError(f"unknown --bound {bound!r}; valid: pareto, ideal, belief, refine, none")
     check_output(out, force)
     prepared = prepare_with(reporter)
     warm = []

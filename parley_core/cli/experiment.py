@@ -155,7 +155,10 @@ def experiment_bound(
     store: StoreOption,
     name: NameOption = None,
     method: Annotated[
-        str, typer.Option(help="pareto (the outer approximation of a run's default bound) or ideal (its ideal point).")
+        str,
+        typer.Option(
+            help="pareto (the outer approximation of a run's default bound), ideal (its ideal point) or belief (pareto on the ideal point of the relaxation read as a POMDP)."
+        ),
     ] = "pareto",
     again: Annotated[bool, typer.Option(help="Compute the bounds of instances that have one again.")] = False,
     workers: Annotated[

@@ -88,7 +88,9 @@ BoundOption = Annotated[
         "--bound",
         help="pareto (default): a certified outer bound of the family and the front's gap to it (the quotient's "
         "relaxation's Pareto curve approximated from outside by weighted sums; two objectives, else the ideal "
-        "point); ideal: the best per objective over all schedulers of the relaxation; refine: branch and bound over the decisions' ranges "
+        "point); ideal: the best per objective over all schedulers of the relaxation; belief: pareto on an ideal "
+        "point tightened by Storm's belief exploration of the relaxation read as a POMDP (unbounded reachability "
+        "objectives only); refine: branch and bound over the decisions' ranges "
         "after the search, for --bound-time seconds (a tighter bound, its policies join the front; exact when "
         "it finishes); none: skip it.",
     ),

@@ -16,7 +16,7 @@ from parley_core.evaluate.pool import default_workers, spawn_pool
 from parley_core.experiment.store import Store
 from parley_core.progress import Progress
 
-METHODS = ("pareto", "ideal")
+METHODS = ("pareto", "ideal", "belief")
 
 
 @frozen(kw_only=True)
@@ -30,9 +30,10 @@ class BoundTask:
 
 def compute(task: BoundTask) -> tuple[BoundTask, np.ndarray, str, float]:
     """One instance's bound (in this process: campaigns parallelize over instances)."""
-    from parley_core.pipeline import family_bound, prepare
+    from parley_core.pipeline import prepare
     from parley_core.plugins import load_registry
     from parley_core.prism.program import quiet_storm
+    from parley_core.run_bounds import family_bound
 
     quiet_storm()  # in a worker process this is the entry point
     case = load_registry().get(task.case)

@@ -232,16 +232,41 @@ def relax(quotient: Quotient, family: Family) -> Relaxation:
     )
 
 
-def write_drn(relaxation: Relaxation, labels: dict[str, np.ndarray], path: str) -> None:
-    """The relaxation in Storm's explicit DRN format: ``labels`` (name -> state mask over the
-    quotient's states; the sink has none), reward structures r0, r1, ... (one per row)."""
+def observations(relaxation: Relaxation) -> np.ndarray:
+    """Each state's observation when the relaxation is read as a POMDP: one per set of
+    decisions a state consults (the sink and the states that consult none share one). A
+    state's actions are the assignments of its decisions, so a policy, which assigns each
+    decision one value, is a memoryless scheduler on these observations, and the POMDP's best
+    value over all observation-based schedulers bounds every policy's, often more tightly
+    than the MDP's over all schedulers."""
     r = relaxation
+    seen: dict[tuple[int, ...], int] = {(): 0}
+    out = np.zeros(r.states, dtype=np.int64)
+    for s in range(r.states - 1):
+        key = tuple(int(d) for d in r.decisions[r.state_decisions[s] : r.state_decisions[s + 1]])
+        out[s] = seen.setdefault(key, len(seen))
+    return out
+
+
+def write_drn(relaxation: Relaxation, labels: dict[str, np.ndarray], path: str, pomdp: bool = False) -> None:
+    """The relaxation in Storm's explicit DRN format: ``labels`` (name -> state mask over the
+    quotient's states; the sink has none), reward structures r0, r1, ... (one per row); with
+    ``pomdp``, as a POMDP with :func:`observations` (actions named by their assignment's
+    number, which means the same assignment at every state of an observation)."""
+    r = relaxation
+    seen = observations(r) if pomdp else None
     n_rewards = r.rewards.shape[0]
     names = list(labels)
     masks = np.zeros((len(names), r.states), dtype=bool)
     for i, name in enumerate(names):
         masks[i, : len(labels[name])] = labels[name]
-    lines = ["@type: MDP", "@parameters", "", "@reward_models", " ".join(f"r{i}" for i in range(n_rewards))]
+    lines = [
+        f"@type: {'POMDP' if pomdp else 'MDP'}",
+        "@parameters",
+        "",
+        "@reward_models",
+        " ".join(f"r{i}" for i in range(n_rewards)),
+    ]
     lines += ["@nr_states", str(r.states), "@nr_choices", str(r.actions), "@model"]
     probability_text = [repr(float(p)) for p in r.probabilities]
     for s in range(r.states):
@@ -249,7 +274,8 @@ def write_drn(relaxation: Relaxation, labels: dict[str, np.ndarray], path: str) 
         if s == r.initial:
             state_labels.insert(0, "init")
         reward_text = "[" + ", ".join("0" for _ in range(n_rewards)) + "]"
-        lines.append(f"state {s} {reward_text} {' '.join(state_labels)}".rstrip())
+        observed = f" {{{seen[s]}}}" if seen is not None else ""
+        lines.append(f"state {s}{observed} {reward_text} {' '.join(state_labels)}".rstrip())
         for local, a in enumerate(range(r.state_actions[s], r.state_actions[s + 1])):
             lines.append(f"\taction {local} [{', '.join(repr(float(r.rewards[i, a])) for i in range(n_rewards))}]")
             for e in range(r.action_entries[a], r.action_entries[a + 1]):
@@ -258,14 +284,20 @@ def write_drn(relaxation: Relaxation, labels: dict[str, np.ndarray], path: str) 
         handle.write("\n".join(lines) + "\n")
 
 
-def storm_model(relaxation: Relaxation, labels: dict[str, np.ndarray]):
-    """The relaxation as a Storm sparse MDP (through a DRN file)."""
+def storm_model(relaxation: Relaxation, labels: dict[str, np.ndarray], pomdp: bool = False):
+    """The relaxation as a Storm sparse MDP, or POMDP with ``pomdp`` (through a DRN file;
+    the POMDP with choice labels, which Storm's belief exploration needs)."""
     import stormpy
+    import stormpy.developer as storm_dev
 
     fd, path = tempfile.mkstemp(suffix=".drn", prefix="parley-relaxation-")
     os.close(fd)
     try:
-        write_drn(relaxation, labels, path)
-        return stormpy.build_model_from_drn(path)
+        write_drn(relaxation, labels, path, pomdp=pomdp)
+        if not pomdp:
+            return stormpy.build_model_from_drn(path)
+        options = storm_dev.DirectEncodingParserOptions()
+        options.build_choice_labeling = True
+        return stormpy.build_model_from_drn(path, options=options)
     finally:
         os.unlink(path)

@@ -1,0 +1,81 @@
+"""The bounds a run computes after its search: the cheap certified outer bound of the
+family (:mod:`parley_core.bound`, :mod:`parley_core.belief`) and branch and bound over the
+decisions' ranges (:mod:`parley_core.exact`), seeded with what the search evaluated."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import attrs
+
+from parley_core.model import Family
+from parley_core.progress import Reporter
+
+if TYPE_CHECKING:
+    from parley_core.bound import Bound
+    from parley_core.evaluate import Evaluator
+    from parley_core.search import SearchResult
+
+
+def family_bound(family: Family, method: str = "pareto") -> Bound:
+    """A family's cheap bound on its own ("pareto" or "ideal"): what a campaign stores."""
+    return outer(family, None, method)[0]
+
+
+def outer(family: Family, engine: Evaluator | None, method: str):
+    """The cheap bound (the ideal point, cut by weighted sums for "pareto") and the family's
+    relaxed objectives it was computed on, for branch and bound to reuse."""
+    from parley_core.bound import ideal_point, pareto_outer
+    from parley_core.quotient.bounds import RelaxedObjectives
+    from parley_core.quotient.coloring import build_quotient
+
+    quotient = getattr(engine, "quotient", None) or build_quotient(family)
+    bounds = RelaxedObjectives(family, quotient)
+    found = ideal_point(family, quotient, bounds)
+    if method == "ideal":
+        return found, bounds
+    if method != "belief":
+        return pareto_outer(family, quotient, found, bounds), bounds
+    from parley_core.belief import belief_ideal
+
+    found = belief_ideal(family, quotient, bounds, ideal=found)  # on the relaxation read as a POMDP
+    cut = pareto_outer(family, quotient, found, bounds)
+    if cut is found:
+        return found, bounds
+    return attrs.evolve(cut, method=f"{cut.method}; {found.method}", details=found.details), bounds
+
+
+def refine(family: Family, engine: Evaluator, result: SearchResult, seconds: float | None, reporter: Reporter, cheap):
+    """Branch and bound after the search, seeded with everything the search evaluated and
+    started from the cheap bound's half-spaces (``cheap``: what :func:`outer` returns); with
+    the seeds' values as branch and bound took them (:meth:`QuotientEvaluator.box_seeds`)."""
+    from parley_core.exact import branch_and_bound
+
+    found, bounds = cheap
+    steps = 1000
+    reporter.stage("branch and bound", steps)
+    done = 0
+
+    def progress(fraction: float) -> None:
+        nonlocal done
+        now = min(steps, int(fraction * steps))
+        if now > done:
+            reporter.advance(now - done)
+            done = now
+
+    seeds = (result.policies, result.values)
+    if hasattr(engine, "box_seeds"):
+        seeds = engine.box_seeds(*seeds)
+    exact = branch_and_bound(
+        family,
+        bounds.quotient,
+        engine.evaluate,
+        seeds=seeds,
+        time_limit=seconds,
+        progress=progress,
+        root_cuts=found.cuts,
+        bounds=bounds,
+        fronts=getattr(engine, "submit_box_fronts", None),
+        whole=bool(getattr(engine, "walks_boxes", lambda: False)()),
+    )
+    return exact, seeds[1]
