@@ -72,9 +72,9 @@ def main() -> int:
                 f"| {label} | - (no objective Storm's belief exploration takes) | | | {seconds:.1f} | {gaps[0]} | {gaps[1]} |"
             )
         for objective, both in answered.items():
+            pomdp_text = f"{both['pomdp']:.6g}" if "pomdp" in both else f"Storm refused: {both['error']}"
             print(
-                f"| {label} | {objective} | {both['mdp']:.6g} | {both['pomdp']:.6g} | {seconds:.1f} | "
-                f"{gaps[0]} | {gaps[1]} |",
+                f"| {label} | {objective} | {both['mdp']:.6g} | {pomdp_text} | {seconds:.1f} | {gaps[0]} | {gaps[1]} |",
                 flush=True,
             )
     return 0
