@@ -95,7 +95,8 @@ def belief_ideal(
                 details[objective.name] = {"mdp": float(ideal.points[0][i]), "error": str(error).splitlines()[0]}
                 continue
             value = float(result.value)
-            slack = PRECISION * max(1.0, abs(value)) if np.isfinite(value) else 0.0
+            # sound value iteration to PRECISION of the value, on either side of it: widened by twice that
+            slack = 2 * PRECISION * max(1.0, abs(value)) if np.isfinite(value) else 0.0
             if objective.direction is Direction.MAX:
                 point[i] = min(point[i], value + slack)
             else:

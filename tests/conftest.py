@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import pytest
 
 from parley_core import Baseline, DecisionKind, Direction, Objective, Service, SystemModel
@@ -51,3 +54,16 @@ def toy_system(prism: str = TOY, **changes) -> SystemModel:
 @pytest.fixture
 def toy() -> SystemModel:
     return toy_system()
+
+
+FOREIGN = Path(__file__).resolve().parents[1].parent / "shared" / "foreign-models"
+"""Real models from other projects (../shared/foreign-models)."""
+
+
+@pytest.fixture(scope="module")
+def foreign() -> Path:
+    if not FOREIGN.is_dir():
+        if os.environ.get("CI"):
+            pytest.fail(f"{FOREIGN} is missing, and CI runs the foreign-model corpus; provide ../shared")
+        pytest.skip(f"{FOREIGN} is absent (the foreign-model corpus lives beside the project, in ../shared)")
+    return FOREIGN

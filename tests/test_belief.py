@@ -13,14 +13,17 @@ import numpy as np
 import pytest
 from conftest import toy_system
 from test_bound import _families
+from test_foreign import MODELS, _paths
 from typer.testing import CliRunner
 
 from parley_core.belief import belief_ideal, belief_query
 from parley_core.bound import ideal_point
 from parley_core.cli import app
 from parley_core.model import DecisionKind, Direction, Objective, Service
+from parley_core.pipeline import make_family
 from parley_core.quotient.coloring import build_quotient
 from parley_core.testing import family, values
+from parley_core.usermodel import system_from_file
 
 # a coin the URC cannot see: at o=1 it must guess the side, which the true state knows
 GUESS = """dtmc
@@ -115,3 +118,20 @@ def test_a_run_with_the_belief_bound_says_so_and_holds_its_front(tmp_path):
 def test_an_unknown_bound_is_one_line_and_status_2():
     result = CliRunner().invoke(app, ["run", "robot_grid", "--bound", "psychic"])
     assert result.exit_code == 2 and "belief" in result.stderr and "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize("index", [2, 3, 4, 5], ids=lambda i: f"{MODELS[i].folder}/{MODELS[i].model}")
+def test_the_belief_bound_holds_on_models_we_did_not_write(foreign, index, tmp_path):
+    # PAYNT's maze (a POMDP family: the URC sees only walls) and PRISM's brp, as tests/test_foreign.py reads them
+    spec = MODELS[index]
+    model, properties = _paths(foreign, spec, tmp_path)
+    fam = make_family(system_from_file(model, spec.decisions, list(spec.observe), properties), prune=True)
+    quotient = build_quotient(fam)
+    mdp = ideal_point(fam, quotient)
+    bound = belief_ideal(fam, quotient, ideal=mdp)
+    storm = values(fam, fam.random(np.random.default_rng(7), 30).astype(np.int64), workers=1)
+    inside = bound.dominates(storm)
+    assert inside.all(), f"{spec.folder}: {storm[~inside][:3]} beyond the belief bound {bound.points}"
+    if spec.folder == "paynt-maze":  # the observation hides the position: fewer expected steps than any observer takes
+        steps = bound.details["belief"]["steps"]
+        assert steps["pomdp"] > steps["mdp"] + 0.1

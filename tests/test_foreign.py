@@ -11,7 +11,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
 from pathlib import Path
 
 import attrs
@@ -24,8 +23,6 @@ from parley_core.pipeline import make_family
 from parley_core.testing import storm_values, values
 from parley_core.usermodel import system_from_file
 from parley_core.verify import TOLERANCE, differences
-
-FOREIGN = Path(__file__).resolve().parents[1].parent / "shared" / "foreign-models"
 
 
 @attrs.frozen
@@ -101,15 +98,6 @@ MODELS = [
         note="as PRISM ships it: one unnamed reward structure, and an unnamed R=? property",
     ),
 ]
-
-
-@pytest.fixture(scope="module")
-def foreign() -> Path:
-    if not FOREIGN.is_dir():
-        if os.environ.get("CI"):
-            pytest.fail(f"{FOREIGN} is missing, and CI runs the foreign-model corpus; provide ../shared")
-        pytest.skip(f"{FOREIGN} is absent (the foreign-model corpus lives beside the project, in ../shared)")
-    return FOREIGN
 
 
 def _paths(foreign: Path, spec: Foreign, tmp_path: Path) -> tuple[Path, Path]:
