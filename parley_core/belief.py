@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from parley_core.bound import PRECISION, Bound, ideal_point, relaxation_queries
+from parley_core.bound import PRECISION, Bound, ideal_point, relaxation_queries, sound_environment
 from parley_core.model import Direction, Family
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
@@ -46,17 +46,6 @@ def belief_query(query: str | None) -> str | None:
     if until:
         return f"{until.group(1)} [F {until.group(2)}]"
     return query if _REWARD.match(query) else None
-
-
-def _environment():
-    import stormpy
-    import stormpy.developer as storm_dev
-
-    environment = stormpy.Environment()
-    minmax = environment.solver().min_max()
-    minmax.method = storm_dev.MinMaxMethod.SOUND_VALUE_ITERATION
-    minmax.precision = stormpy.Rational(PRECISION)
-    return environment
 
 
 def belief_ideal(
@@ -82,7 +71,7 @@ def belief_ideal(
     details: dict[str, object] = {}
     if any(q is not None for q in asked):
         model = storm_model(bounds.relaxation, labels, pomdp=True)
-        environment = _environment()
+        environment = sound_environment(PRECISION, relative=True)
         for i, (objective, query) in enumerate(zip(family.objectives, asked)):
             if query is None:
                 continue

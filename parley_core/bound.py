@@ -108,20 +108,28 @@ def _query(index: int, objective: Objective, kernel: KernelObjective) -> str | N
     return f"{reward} [C]"
 
 
-def _solve(model, text: str) -> tuple[float, float]:
+def sound_environment(precision: float, relative: bool):
+    """A Storm environment whose MDP solver is sound value iteration at ``precision``."""
     import stormpy
     import stormpy.developer as storm_dev
+
+    environment = stormpy.Environment()
+    minmax = environment.solver().min_max()
+    minmax.method = storm_dev.MinMaxMethod.SOUND_VALUE_ITERATION
+    minmax.precision = stormpy.Rational(precision)
+    minmax.relative_termination_criterion = relative
+    return environment
+
+
+def _solve(model, text: str) -> tuple[float, float]:
+    import stormpy
 
     (prop,) = stormpy.parse_properties(text)
     initial = model.initial_states[0]
     estimate = np.asarray(stormpy.model_checking(model, prop).get_value_vector(), dtype=float)
     finite = estimate[np.isfinite(estimate)]
     scale = max(1.0, float(np.abs(finite).max())) if len(finite) else 1.0
-    environment = stormpy.Environment()
-    minmax = environment.solver().min_max()
-    minmax.method = storm_dev.MinMaxMethod.SOUND_VALUE_ITERATION
-    minmax.precision = stormpy.Rational(PRECISION * scale)
-    minmax.relative_termination_criterion = False
+    environment = sound_environment(PRECISION * scale, relative=False)
     value = float(stormpy.model_checking(model, prop, environment=environment).get_value(initial))
     return value, PRECISION * scale
 

@@ -8,8 +8,12 @@ from typing import TYPE_CHECKING
 
 import attrs
 
+from parley_core.errors import OptionError
 from parley_core.model import Family
 from parley_core.progress import Reporter
+
+METHODS = ("pareto", "ideal", "belief")
+"""The cheap bounds :func:`outer` computes."""
 
 if TYPE_CHECKING:
     from parley_core.bound import Bound
@@ -18,23 +22,26 @@ if TYPE_CHECKING:
 
 
 def family_bound(family: Family, method: str = "pareto") -> Bound:
-    """A family's cheap bound on its own ("pareto" or "ideal"): what a campaign stores."""
+    """A family's cheap bound on its own ("pareto", "ideal" or "belief"): what a campaign stores."""
     return outer(family, None, method)[0]
 
 
 def outer(family: Family, engine: Evaluator | None, method: str):
-    """The cheap bound (the ideal point, cut by weighted sums for "pareto") and the family's
+    """The cheap bound (the ideal point; cut by weighted sums for "pareto", and for "belief"
+    after the ideal point is tightened on the relaxation read as a POMDP) and the family's
     relaxed objectives it was computed on, for branch and bound to reuse."""
     from parley_core.bound import ideal_point, pareto_outer
     from parley_core.quotient.bounds import RelaxedObjectives
     from parley_core.quotient.coloring import build_quotient
 
+    if method not in METHODS:
+        raise OptionError(f"unknown bound {method!r}; valid: {', '.join(METHODS)}")
     quotient = getattr(engine, "quotient", None) or build_quotient(family)
     bounds = RelaxedObjectives(family, quotient)
     found = ideal_point(family, quotient, bounds)
     if method == "ideal":
         return found, bounds
-    if method != "belief":
+    if method == "pareto":
         return pareto_outer(family, quotient, found, bounds), bounds
     from parley_core.belief import belief_ideal
 

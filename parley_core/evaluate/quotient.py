@@ -274,9 +274,9 @@ class QuotientEvaluator:
         a tie by rounding alone (a last-bit better value beside a much worse one)."""
         domains = [np.array(d.service.values, dtype=np.int64) for d in self.family.decisions]
         rows = np.asarray(rows, dtype=np.int64).reshape(-1, len(domains))
-        whole = Box(np.zeros(len(domains), dtype=np.int64), np.array([len(d) - 1 for d in domains], dtype=np.int64))
-        if not len(rows) or self._walker is None or not self._walks(whole, domains):
+        if not len(rows) or not self.walks_boxes():
             return rows, values
+        assert self._walker is not None  # walks_boxes says so
         table = _domain_table(domains)
         index = np.column_stack([np.searchsorted(domain, rows[:, d]) for d, domain in enumerate(domains)])
         walked = np.vstack([self._walker.solve(Box(i, i), *table)[1] for i in index])

@@ -15,8 +15,7 @@ from parley_core.errors import OptionError
 from parley_core.evaluate.pool import default_workers, spawn_pool
 from parley_core.experiment.store import Store
 from parley_core.progress import Progress
-
-METHODS = ("pareto", "ideal", "belief")
+from parley_core.run_bounds import METHODS, family_bound
 
 
 @frozen(kw_only=True)
@@ -33,7 +32,6 @@ def compute(task: BoundTask) -> tuple[BoundTask, np.ndarray, str, float]:
     from parley_core.pipeline import prepare
     from parley_core.plugins import load_registry
     from parley_core.prism.program import quiet_storm
-    from parley_core.run_bounds import family_bound
 
     quiet_storm()  # in a worker process this is the entry point
     case = load_registry().get(task.case)
