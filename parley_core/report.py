@@ -190,6 +190,17 @@ def summary(result: RunResult) -> dict[str, Any]:
             "stopped_by": search.stopped_by.value,
             "interrupted": search.interrupted,
             "warm_start_policies": result.warm_start,
+            **(
+                {
+                    "guided": {
+                        "walked_policies": len(search.walked.policies),
+                        "seconds": round(search.walked.seconds, 4),
+                        "skipped": search.walked.skipped,
+                    }
+                }
+                if search.walked is not None
+                else {}
+            ),
         },
         "evaluator": result.evaluator.value,
         "evaluator_details": result.evaluator_info,

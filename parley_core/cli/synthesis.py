@@ -273,6 +273,14 @@ def _synthesize(make, warm_start: Path | None = None) -> None:
         f"({result.timings.get('search', 0):.1f} s, stopped by {search.stopped_by.value}); "
         f"selected {info['selected']['policy']} (knee)"
     )
+    if search.walked is not None:
+        walked = search.walked
+        console.print(
+            f"guided: the search started from {len(walked.policies)} policies found by policy improvement "
+            f"on the relaxation ({walked.seconds:.1f} s)"
+            if not walked.skipped
+            else f"guided: no policy improvement ({walked.skipped}); the search started as small does"
+        )
     for name, count in info["infinite_values"].items():
         console.print(
             f"{count} of {search.evaluations} evaluated policies have an infinite {name} "

@@ -14,7 +14,9 @@ first population the baselines and random policies (:func:`~parley_core.search.r
 - ``local``: ``archive`` whose matings make, half of the time, one-step neighbours of the
   archive's front instead (Pareto local search, :meth:`OrdinalMating.polish`);
 - ``small``: ``archive`` with half the population (50 for the paper's 100) after the first
-  generation, so twice the generations for the same evaluations.
+  generation, so twice the generations for the same evaluations;
+- ``guided``: ``small`` whose first population starts from walks of policy improvement on the
+  quotient's relaxation (:mod:`parley_core.search.guide`), evaluated as part of the budget.
 
 benchmarks/search.py measures them against each other.
 """
@@ -45,6 +47,8 @@ class Configuration:
     summary: str
     build: Callable[[int, np.ndarray], Algorithm]
     blend: float = 0.0
+    guided: bool = False
+    """Whether the search first walks by policy improvement (:func:`~parley_core.search.guide.guided_start`)."""
 
 
 def _paper(population: int, sampling: np.ndarray) -> Algorithm:
@@ -105,6 +109,7 @@ ALGORITHMS: dict[str, Configuration] = {
         Configuration("blend", "archive, half the first population blends of two baselines", _archive, blend=0.5),
         Configuration("local", "archive, half the matings one-step neighbours of the front (local search)", _local),
         Configuration("small", "archive with a population of 50 (twice the generations)", _small),
+        Configuration("guided", "small, started from policy improvement on the relaxation", _small, guided=True),
     )
 }
 """Every search configuration, by name."""

@@ -12,6 +12,7 @@ from parley_core.evaluate.cache import CachingEvaluator
 from parley_core.model import Family
 from parley_core.progress import Progress
 from parley_core.search.algorithms import configuration
+from parley_core.search.guide import guided_start
 from parley_core.search.problem import Genes, PolicyProblem, termination
 from parley_core.search.settings import SearchResult, SearchSettings, Stop
 
@@ -69,6 +70,11 @@ def search(
     )
     problem = PolicyProblem(family, archive, constraints=settings.constraints, budget=settings.max_evaluations)
     chosen = configuration(settings.algorithm)
+    walked = None
+    if chosen.guided:
+        walked = guided_start(family, archive, getattr(evaluator, "quotient", None), settings.max_evaluations)
+        if len(walked.policies):
+            warm = walked.policies if warm is None or not len(warm) else np.vstack([warm, walked.policies])
     algorithm = chosen.build(settings.population, initial_population(family, settings, blend=chosen.blend, warm=warm))
     criteria = termination(settings, archive)
     algorithm.setup(problem, termination=TerminateIfAny(*criteria.values()), seed=settings.seed, verbose=False)
@@ -90,6 +96,7 @@ def search(
         values=archive.values,
         evaluations=len(archive),
         generations=generation,
-        seconds=time.perf_counter() - start,
+        seconds=time.perf_counter() - start + (walked.seconds if walked else 0.0),
         stopped_by=stopped_by,
+        walked=walked,
     )

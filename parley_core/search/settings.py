@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import enum
+from typing import TYPE_CHECKING
 
 import attrs
 import numpy as np
 from attrs import field, frozen, validators
 
 from parley_core.constraints import Constraint
+
+if TYPE_CHECKING:
+    from parley_core.search.guide import Walked
 
 
 def _positive_or_none(_instance, attribute: attrs.Attribute, value) -> None:
@@ -66,6 +70,8 @@ class SearchResult:
     generations: int
     seconds: float
     stopped_by: Stop
+    walked: Walked | None = None
+    """The walks of policy improvement a ``guided`` search started from (None: not guided)."""
 
     @property
     def interrupted(self) -> bool:

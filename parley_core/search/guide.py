@@ -1,0 +1,142 @@
+"""A first population found by policy improvement on the relaxation (configuration ``guided``).
+
+NSGA-II spends most of its first thousand evaluations finding where the front is. The
+quotient's relaxation knows more than the evaluator tells: for a policy and a weighting of
+the objectives, :class:`~parley_core.quotient.improve.PolicyImprover` scores every value of
+every decision by how it would change the policy's weighted value. :func:`guided_start`
+walks from the baselines along ``directions`` weightings spread over the front:
+
+1. take the best baseline under the weighting (walks from different baselines find
+   different parts of the front; walks that continued from the best policy found so far
+   ended on the same few points);
+2. move every decision to its best-scored value (one computation of the scores serves every
+   weighting that stands at the same policy: they are linear in the weights), and evaluate
+   the results of all walks together (with the search's own evaluator, through the archive,
+   so they count towards the budget and are the values the run reports);
+3. keep walking where the weighted value grew, at most ``steps`` times.
+
+Every policy evaluated on the way joins the archive; the search then starts from them. The
+walks are deterministic (no random draws), so the configuration stays deterministic by seed.
+Where the relaxation cannot guide (no quotient, objectives that do not combine into a
+weighted sum, see :class:`~parley_core.quotient.improve.PolicyImprover`), nothing is walked
+and the search starts as ``small`` does; :class:`Walked` says which.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from attrs import frozen
+
+from parley_core.evaluate.cache import CachingEvaluator
+from parley_core.model import Family
+
+DIRECTIONS = 12
+STEPS = 6
+SHARE = 0.25
+"""At most this share of the search's evaluation budget goes to the walks."""
+
+
+@frozen(kw_only=True)
+class Walked:
+    """What :func:`guided_start` did: the policies it evaluated (in order), or why it did nothing."""
+
+    policies: np.ndarray
+    seconds: float
+    skipped: str = ""
+
+
+def weightings(values: np.ndarray, signs: np.ndarray, count: int) -> np.ndarray:
+    """``count`` weightings (rows, >= 0) spread over the directions between the objectives,
+    each objective scaled by the spread of ``values`` (sign space) so that no objective's
+    units decide the spacing; with more than two objectives, the corners' midpoints and a
+    fixed lattice of the simplex."""
+    signed = np.asarray(values, dtype=float) * signs
+    finite = np.where(np.isfinite(signed), signed, np.nan)
+    span = np.nanmax(finite, axis=0) - np.nanmin(finite, axis=0) if len(finite) else np.ones(len(signs))
+    span = np.where(np.isfinite(span) & (span > 1e-12), span, 1.0)
+    if len(signs) == 2:
+        angles = np.linspace(0.0, np.pi / 2, count + 2)[1:-1]
+        raw = np.column_stack([np.cos(angles), np.sin(angles)])
+    else:
+        parts = max(2, round(count ** (1 / max(1, len(signs) - 1))))
+        grid = np.array(np.meshgrid(*[np.arange(parts + 1)] * len(signs))).reshape(len(signs), -1).T
+        raw = grid[(grid.sum(axis=1) == parts) & (grid > 0).all(axis=1)].astype(float)
+        if not len(raw):
+            raw = np.ones((1, len(signs)))
+    return raw / span
+
+
+def guided_start(
+    family: Family,
+    archive: CachingEvaluator,
+    quotient,
+    budget: int | None,
+    directions: int = DIRECTIONS,
+    steps: int = STEPS,
+) -> Walked:
+    """Walk from the baselines by policy improvement (module docstring); the policies
+    evaluated on the way are in ``archive``. ``budget``: the search's evaluation budget (None:
+    unlimited), of which at most :data:`SHARE` is spent here."""
+    from parley_core.quotient.improve import PolicyImprover
+
+    start = time.perf_counter()
+    empty = np.zeros((0, len(family.decisions)), dtype=np.int64)
+    if quotient is None:
+        return Walked(policies=empty, seconds=0.0, skipped="the evaluator has no quotient")
+    improver = PolicyImprover(family, quotient)
+    if not improver.available:
+        return Walked(policies=empty, seconds=time.perf_counter() - start, skipped=improver.unavailable)
+    cap = None if budget is None else max(0, int(SHARE * budget))
+    domains = [np.asarray(d.service.values, dtype=np.int64) for d in family.decisions]
+    positions = [{int(v): i for i, v in enumerate(domain)} for domain in domains]
+
+    def indices(policy: np.ndarray) -> np.ndarray:
+        return np.array([where[int(v)] for where, v in zip(positions, policy)], dtype=np.int64)
+
+    def policy(positions: np.ndarray) -> np.ndarray:
+        return np.array([domain[i] for domain, i in zip(domains, positions)], dtype=np.int64)
+
+    baselines = np.array([p.values for p in family.baseline_policies()], dtype=np.int64)
+    baselines = baselines.reshape(-1, len(family.decisions))
+    signs = improver.signs
+    # every search evaluates the baselines first anyway; within the budget, as it would
+    room = None if budget is None else max(0, budget - len(archive))
+    start_values = archive.evaluate(baselines, budget=room) * signs
+    start_values = np.where(np.isfinite(start_values), start_values, -np.inf)
+    before = len(archive)
+    if budget is not None:
+        cap = min(cap if cap is not None else budget, max(0, budget - before))
+    if not np.isfinite(start_values).any(axis=1).any():
+        return Walked(policies=empty, seconds=time.perf_counter() - start, skipped="no baseline was evaluated")
+    directions_ = weightings(start_values, np.ones(len(signs)), directions)
+    firsts = [int(np.argmax(start_values @ w)) for w in directions_]
+    walks = [(w, indices(baselines[i]), float(start_values[i] @ w)) for w, i in zip(directions_, firsts)]
+    gradients: dict[bytes, np.ndarray] = {}
+    walked: list[np.ndarray] = []
+    for _ in range(steps):
+        moves = []
+        for weights, current, level in walks:
+            key = current.tobytes()
+            if key not in gradients:
+                gradients[key] = improver.gradients(current)[0]
+            moved = improver.improve(current, gradients[key], weights)
+            if not np.array_equal(moved, current):
+                moves.append((weights, moved, level))
+        if cap is not None:
+            moves = moves[: max(0, cap - (len(archive) - before))]
+        if not moves:
+            break
+        candidates = np.array([policy(moved) for _, moved, _ in moves])
+        new = [c for c in candidates if c not in archive]
+        values = archive.evaluate(candidates) * signs
+        walked += new
+        walks = []
+        for (weights, moved, level), value in zip(moves, values):
+            reached = float(np.where(np.isfinite(value), value, -np.inf) @ weights)
+            if reached > level + 1e-12 * max(1.0, abs(level)):
+                walks.append((weights, moved, reached))
+    unique = {row.tobytes(): row for row in walked}  # in the order first evaluated
+    policies = np.array(list(unique.values()), dtype=np.int64).reshape(-1, len(family.decisions))
+    return Walked(policies=policies, seconds=time.perf_counter() - start)
