@@ -48,7 +48,7 @@ MEMORY = 256 * 2**20
 """Bytes the backward values of all steps may take before checkpointing starts."""
 
 REACH_TOLERANCE = 1e-6
-REACH_SWEEPS = 2000
+REACH_SWEEPS = 200
 """The policy's probability to reach past the horizon is a guide, not a bound: iterated to
 this tolerance (at most this many sweeps)."""
 
@@ -77,7 +77,35 @@ def _leaves(t, s, horizon, left, right, until_steps):
 
 
 @njit(cache=True)
-def deviations(initial, horizon, chosen, state_actions, action_entries, targets, state_decisions):
+def representatives(state_actions, action_entries, targets, probabilities, rewards):
+    """Per action the first action of its state with the same entries and rewards (itself if
+    none): on map_10 the ten values of an interval give two distinct actions, localise or not."""
+    out = np.arange(action_entries.shape[0] - 1)
+    for s in range(state_actions.shape[0] - 1):
+        for a in range(state_actions[s] + 1, state_actions[s + 1]):
+            for b in range(state_actions[s], a):
+                if out[b] != b:
+                    continue
+                if action_entries[a + 1] - action_entries[a] != action_entries[b + 1] - action_entries[b]:
+                    continue
+                same = True
+                for i in range(rewards.shape[0]):
+                    if rewards[i, a] != rewards[i, b]:
+                        same = False
+                        break
+                offset = action_entries[b] - action_entries[a]
+                for e in range(action_entries[a], action_entries[a + 1]):
+                    if not same:
+                        break
+                    same = targets[e] == targets[e + offset] and probabilities[e] == probabilities[e + offset]
+                if same:
+                    out[a] = b
+                    break
+    return out
+
+
+@njit(cache=True)
+def deviations(initial, horizon, chosen, state_actions, action_entries, targets, state_decisions, same):
     """Per step ``t`` the states where the policy, deviating at most once at a state that
     consults a decision, can be at step ``t`` (CSR: pointers, flat list), with a flag for
     those where the policy itself can be: the only states whose values at ``t`` the scores
@@ -101,6 +129,8 @@ def deviations(initial, horizon, chosen, state_actions, action_entries, targets,
             first = state_actions[s] if deviate else chosen[s]
             last = state_actions[s + 1] if deviate else chosen[s] + 1
             for action in range(first, last):
+                if same[action] != action and action != chosen[s]:
+                    continue  # its successors are those of an action before it
                 followed = policy[i] and action == chosen[s]
                 for e in range(action_entries[action], action_entries[action + 1]):
                     target = targets[e]
@@ -170,19 +200,22 @@ def back_step(t, horizon, listed, chosen, action_entries, targets, probabilities
 @njit(cache=True)
 def forward_step(t, horizon, listed, chosen, state_actions, action_entries, targets, probabilities, rewards, rows, steps,
                  coefficients, has_until, left, right, until_steps, a_next, b_next, state_decisions, decisions,
-                 sizes, ma, mb, na, nb, score):  # fmt: skip
+                 sizes, ma, mb, na, nb, score, same, stamp, known):  # fmt: skip
     """Add to ``score[c, d, k]`` the value (channel ``c``) of moving, at the states with mass
     at step ``t`` that consult ``d``, to the action that gives ``d`` the value ``k`` and
     keeps the policy's other values, weighted by the mass (``ma``: mass still counting for
     the reachability objective, ``mb``: the rest); then move the mass one step along the
-    policy's actions into ``na``, ``nb`` (zeroed by the caller)."""
+    policy's actions into ``na``, ``nb`` (zeroed by the caller). An action's value is
+    computed once per state and mode (``known[same[action]]``, valid where ``stamp`` says so)."""
     channels = coefficients.shape[0]
     q = np.empty(channels)
+    visit = stamp[0]
     for s in listed:
         for mode in range(2):
             mass = ma[s] if mode == 0 else mb[s]
             if mass == 0.0:
                 continue
+            visit += 1
             pending = mode == 0 and has_until and not _leaves(t, s, horizon, left, right, until_steps)
             base = state_actions[s]
             local = chosen[s] - base
@@ -193,15 +226,18 @@ def forward_step(t, horizon, listed, chosen, state_actions, action_entries, targ
                 digit = rest % sizes[d]
                 rest //= sizes[d]
                 for value in range(sizes[d]):
-                    action = base + local + (value - digit) * radix
-                    _step_rewards(rewards, rows, steps, coefficients, t, action, q)
-                    if t < horizon:
-                        for e in range(action_entries[action], action_entries[action + 1]):
-                            p = probabilities[e]
-                            for c in range(channels):
-                                q[c] += p * (a_next[targets[e], c] if pending else b_next[targets[e], c])
+                    action = same[base + local + (value - digit) * radix]
+                    if stamp[action + 1] != visit:
+                        _step_rewards(rewards, rows, steps, coefficients, t, action, q)
+                        if t < horizon:
+                            for e in range(action_entries[action], action_entries[action + 1]):
+                                p = probabilities[e]
+                                for c in range(channels):
+                                    q[c] += p * (a_next[targets[e], c] if pending else b_next[targets[e], c])
+                        known[action] = q
+                        stamp[action + 1] = visit
                     for c in range(channels):
-                        score[c, d, value] += mass * q[c]
+                        score[c, d, value] += mass * known[action, c]
                 radix *= sizes[d]
             if t < horizon:
                 action = chosen[s]
@@ -210,6 +246,50 @@ def forward_step(t, horizon, listed, chosen, state_actions, action_entries, targ
                         na[targets[e]] += mass * probabilities[e]
                     else:
                         nb[targets[e]] += mass * probabilities[e]
+    stamp[0] = visit
+
+
+@njit(cache=True)
+def backward(top, bottom, slots, pointers, listed, horizon, chosen, action_entries, targets, probabilities,
+             rewards_by_window, window, has_until, left, right, until_steps, gain, terminal, store):  # fmt: skip
+    """:func:`back_step` from step ``top - 1`` down to ``bottom`` at the states
+    :func:`deviations` lists, step ``t``'s values read from ``store[slots[t + 1]]`` and
+    written to ``store[slots[t]]`` (one call: a numba call per step costs more than its work)."""
+    for t in range(top - 1, bottom - 1, -1):
+        here = listed[pointers[t] : pointers[t + 1]]
+        following, now = store[slots[t + 1]], store[slots[t]]
+        back_step(t, horizon, here, chosen, action_entries, targets, probabilities, rewards_by_window[window[t]],
+                  has_until, left, right, until_steps, gain, terminal, following[0], following[1], now[0],
+                  now[1])  # fmt: skip
+
+
+@njit(cache=True)
+def forward(start, end, slots, pointers, listed, on_policy, horizon, chosen, state_actions, action_entries, targets,
+            probabilities, rewards, rows, steps, coefficients, has_until, left, right, until_steps, state_decisions,
+            decisions, sizes, masses, score, same, stamp, known, store):  # fmt: skip
+    """:func:`forward_step` for the steps ``start .. end - 1``, the values of step ``t + 1`` in
+    ``store[slots[t + 1]]``, the occupancy in ``masses[t % 2]`` (moved into ``masses[1 - t % 2]``,
+    and zeroed behind it)."""
+    for t in range(start, end):
+        first, last = pointers[t], pointers[t + 1]
+        count = 0
+        for i in range(first, last):
+            count += on_policy[i]
+        here = np.empty(count, dtype=np.int64)
+        j = 0
+        for i in range(first, last):
+            if on_policy[i]:
+                here[j] = listed[i]
+                j += 1
+        following = store[slots[t + 1]]
+        mass, moved = masses[t % 2], masses[1 - t % 2]
+        forward_step(t, horizon, here, chosen, state_actions, action_entries, targets, probabilities, rewards, rows,
+                     steps, coefficients, has_until, left, right, until_steps, following[0], following[1],
+                     state_decisions, decisions, sizes, mass[0], mass[1], moved[0], moved[1], score, same, stamp,
+                     known)  # fmt: skip
+        for s in here:
+            mass[0, s] = 0.0
+            mass[1, s] = 0.0
 
 
 class PolicyImprover:
@@ -241,8 +321,36 @@ class PolicyImprover:
         self.horizon = max([*self.steps.tolist(), self.until_steps, 0])
         self.live = np.ones(n, dtype=bool)
         self.sizes = np.asarray(r.domain_sizes, dtype=np.int64)
+        self.same = representatives(r.state_actions, r.action_entries, r.targets, r.probabilities, r.rewards)
+        self._values: np.ndarray | None = None
+        self._mass: np.ndarray | None = None
         per_step = 2 * 8 * n * len(self.signs)
         self.stride = 1 if (self.horizon + 2) * per_step <= MEMORY else max(1, math.isqrt(self.horizon + 1))
+
+    def _slot(self, t: int) -> int:
+        """Where step ``t``'s values live in :meth:`_store`: every step's, or every
+        ``stride``-th step's and the horizon's (then the stretch and scratch slots follow)."""
+        if self.stride == 1:
+            return t
+        return self.horizon // self.stride + 1 if t == self.horizon + 1 else t // self.stride
+
+    def _stretch(self, i: int) -> int:
+        return self.horizon // self.stride + 2 + i
+
+    def _scratch(self, t: int) -> int:
+        return self.horizon // self.stride + 2 + self.stride + t % 2
+
+    def _store(self, channels: int) -> np.ndarray:
+        slots = self.horizon + 2 if self.stride == 1 else self._scratch(1) + 1
+        if self._values is None or self._values.shape != (slots, 2, self.relaxation.states, channels):
+            self._values = np.empty((slots, 2, self.relaxation.states, channels))
+        return self._values
+
+    def _masses(self) -> np.ndarray:
+        """[step parity, pending or not, state]: the occupancy now and one step on."""
+        if self._mass is None:
+            self._mass = np.zeros((2, 2, self.relaxation.states))
+        return self._mass
 
     @property
     def available(self) -> bool:
@@ -284,54 +392,45 @@ class PolicyImprover:
             terminal = np.ascontiguousarray(reach[:, None] * gain[None, :])
         horizon, stride, n = self.horizon, self.stride, r.states
         rewards = (r.rewards, self.rows, self.steps, coefficients)
-        ends = tuple(sorted({0, *[int(x) for x in self.steps if x <= horizon], horizon + 1}))
-        now: dict[int, np.ndarray] = {}  # the chosen actions' rewards, per stretch of steps where they stay
-
-        def reward_at(t: int) -> np.ndarray:
-            window = max(e for e in ends if e <= t)
-            if window not in now:
-                now[window] = np.empty((n, channels))
-                chosen_rewards(*rewards, t, chosen, now[window])
-            return now[window]
-
+        ends = sorted({0, *[int(x) for x in self.steps if x <= horizon], horizon + 1})
+        window = np.array([max(i for i, e in enumerate(ends) if e <= t) for t in range(horizon + 1)], dtype=np.int64)
+        rewards_by_window = np.empty((len(ends), n, channels))  # the chosen actions' rewards, where they stay
+        for i, e in enumerate(ends):
+            if e <= horizon:
+                chosen_rewards(*rewards, e, chosen, rewards_by_window[i])
         pointers, listed, on_policy = deviations(
-            r.initial, horizon, chosen, r.state_actions, r.action_entries, r.targets, r.state_decisions
+            r.initial, horizon, chosen, r.state_actions, r.action_entries, r.targets, r.state_decisions, self.same
         )
-
-        def backward(top: int, bottom: int, every: int) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-            """Values from step ``top`` (known) down to ``bottom``, those of every ``every``-th step kept."""
-            a_next, b_next = kept[top]
-            out = {}
-            for t in range(top - 1, bottom - 1, -1):
-                a_now, b_now = np.empty((n, channels)), np.empty((n, channels))
-                here = listed[pointers[t] : pointers[t + 1]]
-                back_step(t, horizon, here, chosen, r.action_entries, r.targets, r.probabilities, reward_at(t), has_until,
-                          self.left, self.right, self.until_steps, gain, terminal, a_next, b_next, a_now, b_now)  # fmt: skip
-                if t % every == 0 or t == bottom:
-                    out[t] = (a_now, b_now)
-                a_next, b_next = a_now, b_now
-            return out
-
-        kept = {horizon + 1: (np.zeros((n, channels)), np.zeros((n, channels)))}
-        kept.update(backward(horizon + 1, 0, stride))
-        a0, b0 = kept[0]
-        values = np.array(a0[r.initial] if has_until else b0[r.initial])
+        store = self._store(channels)  # [slot, a or b, state, channel], reused: fresh pages cost more than the work
+        store[self._slot(horizon + 1)] = 0.0
+        common = (pointers, listed, horizon, chosen, r.action_entries, r.targets, r.probabilities, rewards_by_window,
+                  window, has_until, self.left, self.right, self.until_steps, gain, terminal, store)  # fmt: skip
+        # the first pass keeps every stride-th step (and the horizon's), the others in two scratch slots
+        slots = np.array([self._slot(t) if t % stride == 0 or t == horizon + 1 else self._scratch(t)
+                          for t in range(horizon + 2)], dtype=np.int64)  # fmt: skip
+        backward(horizon + 1, 0, slots, *common)
+        first = store[self._slot(0)]
+        values = np.array(first[0, r.initial] if has_until else first[1, r.initial])
 
         score = np.zeros((channels, len(self.sizes), int(self.sizes.max()) if len(self.sizes) else 0))
-        ma, mb = np.zeros(n), np.zeros(n)
-        (ma if has_until else mb)[r.initial] = 1.0
-        for start in range(0, horizon + 1, stride):
-            end = min(start + stride, horizon + 1)  # this stretch needs the values of start+1 .. end
-            stretch = {end: kept[end], **(backward(end, start + 1, 1) if stride > 1 else {})}
-            for t in range(start, end):
-                a_next, b_next = stretch[t + 1]
-                na, nb = np.zeros(n), np.zeros(n)
-                here = listed[pointers[t] : pointers[t + 1]][on_policy[pointers[t] : pointers[t + 1]]]
-                forward_step(t, horizon, here, chosen, r.state_actions, r.action_entries, r.targets, r.probabilities,
-                             *rewards, has_until, self.left, self.right,
-                             self.until_steps, a_next, b_next, r.state_decisions, r.decisions, self.sizes, ma, mb,
-                             na, nb, score)  # fmt: skip
-                ma, mb = na, nb
+        masses = self._masses()
+        masses[:] = 0.0
+        masses[0, 0 if has_until else 1, r.initial] = 1.0
+        stamp, known = np.zeros(r.actions + 1, dtype=np.int64), np.empty((r.actions, channels))
+        stretches = (
+            [(0, horizon + 1)]
+            if stride == 1
+            else [(t, min(t + stride, horizon + 1)) for t in range(0, horizon + 1, stride)]
+        )
+        for start, end in stretches:  # a stretch needs the values of start+1 .. end
+            if stride > 1:
+                slots[start + 1 : end] = [self._stretch(t - start - 1) for t in range(start + 1, end)]
+                slots[end] = self._slot(end)
+                backward(end, start + 1, slots, *common)
+            forward(start, end, slots, pointers, listed, on_policy, horizon, chosen, r.state_actions, r.action_entries,
+                    r.targets, r.probabilities, *rewards, has_until, self.left, self.right, self.until_steps,
+                    r.state_decisions, r.decisions, self.sizes, masses, score, self.same, stamp, known,
+                    store)  # fmt: skip
         for d, size in enumerate(self.sizes):
             score[:, d, size:] = -np.inf
         return score, values
