@@ -82,6 +82,17 @@ class RelaxedObjectives:
         self.until = probabilities[0] if probabilities else -1
         steps = [kernel.steps for kernel in quotient.objectives if kernel is not None]
         self.horizon = max(steps) if steps else 0
+        # a weighted sum's parts: the step-bounded rewards, and the reachability objective's step bound
+        found = [(i, kn) for i, kn in enumerate(self.kernels) if kn is not None and kn.kind is KernelKind.CUMULATIVE]
+        self.cumulative = [i for i, _ in found]
+        self.cumulative_rows = np.array([kn.reward for _, kn in found], dtype=np.int64)
+        self.cumulative_steps = np.array([kn.steps for _, kn in found], dtype=np.int64)
+        until_kernel = self.kernels[self.until] if self.until >= 0 else None
+        self.until_steps = (
+            until_kernel.steps if until_kernel is not None and until_kernel.kind is KernelKind.BOUNDED else -1
+        )
+        self.weighted_horizon = max([*self.cumulative_steps.tolist(), self.until_steps, 0])
+        """The steps a weighted sum's backward induction runs over."""
 
     def restrict(self, lo: np.ndarray, hi: np.ndarray) -> Restricted:
         r = self.relaxation
@@ -144,14 +155,11 @@ class RelaxedObjectives:
 
     def _horizon(self, view: Restricted, weights: np.ndarray, until: int) -> np.ndarray:
         r = self.relaxation
-        found = [(i, kn) for i, kn in enumerate(self.kernels) if kn is not None and kn.kind is KernelKind.CUMULATIVE]
-        cumulative = [i for i, _ in found]
-        rows = np.array([kn.reward for _, kn in found], dtype=np.int64)
-        steps = np.array([kn.steps for _, kn in found], dtype=np.int64)
+        cumulative, rows, steps = self.cumulative, self.cumulative_rows, self.cumulative_steps
         coefficients = np.ascontiguousarray(weights[:, cumulative] * self.signs[cumulative])
         n = r.states
         left, right, until_steps, reach = np.ones(n, dtype=bool), np.zeros(n, dtype=bool), -1, np.zeros(n)
-        if until >= 0:
+        if until >= 0:  # not always self.until: ideal() bounds each bounded probability this way
             kernel = self.kernels[until]
             assert kernel is not None
             left, right = self.left[until], self.right[until]
