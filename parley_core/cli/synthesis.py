@@ -279,7 +279,7 @@ def _synthesize(make, warm_start: Path | None = None) -> None:
             f"guided: the search started from {len(walked.policies)} policies found by policy improvement "
             f"on the relaxation ({walked.seconds:.1f} s)"
             if not walked.skipped
-            else f"guided: no policy improvement ({walked.skipped}); the search started as small does"
+            else f"guided: no policy improvement ({walked.skipped}); the search started without it"
         )
     for name, count in info["infinite_values"].items():
         console.print(

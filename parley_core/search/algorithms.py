@@ -15,8 +15,11 @@ first population the baselines and random policies (:func:`~parley_core.search.r
   archive's front instead (Pareto local search, :meth:`OrdinalMating.polish`);
 - ``small``: ``archive`` with half the population (50 for the paper's 100) after the first
   generation, so twice the generations for the same evaluations;
-- ``guided``: ``small`` whose first population starts from walks of policy improvement on the
-  quotient's relaxation (:mod:`parley_core.search.guide`), evaluated as part of the budget.
+- ``guided``: ``paper`` whose first population holds, after the baselines, the policies
+  found by walks of policy improvement on the quotient's relaxation
+  (:mod:`parley_core.search.guide`), evaluated as part of the budget;
+- ``guided-small``: ``small`` started by the same walks, whose policies reach it through the
+  archive's front only.
 
 benchmarks/search.py measures them against each other.
 """
@@ -47,8 +50,9 @@ class Configuration:
     summary: str
     build: Callable[[int, np.ndarray], Algorithm]
     blend: float = 0.0
-    guided: bool = False
-    """Whether the search first walks by policy improvement (:func:`~parley_core.search.guide.guided_start`)."""
+    guided: str = ""
+    """Whether the search first walks by policy improvement (:func:`~parley_core.search.guide.guided_start`),
+    and where the walks' policies go: ``"population"`` (the first one) or ``"archive"`` (only there)."""
 
 
 def _paper(population: int, sampling: np.ndarray) -> Algorithm:
@@ -109,7 +113,15 @@ ALGORITHMS: dict[str, Configuration] = {
         Configuration("blend", "archive, half the first population blends of two baselines", _archive, blend=0.5),
         Configuration("local", "archive, half the matings one-step neighbours of the front (local search)", _local),
         Configuration("small", "archive with a population of 50 (twice the generations)", _small),
-        Configuration("guided", "small, started from policy improvement on the relaxation", _small, guided=True),
+        Configuration(
+            "guided",
+            "paper, its first population from policy improvement on the relaxation",
+            _paper,
+            guided="population",
+        ),
+        Configuration(
+            "guided-small", "small, started by policy improvement on the relaxation", _small, guided="archive"
+        ),
     )
 }
 """Every search configuration, by name."""

@@ -1,4 +1,4 @@
-"""Where a search starts: walks of policy improvement on the relaxation (configuration ``guided``).
+"""Where a search starts: walks of policy improvement on the relaxation (``guided``, ``guided-small``).
 
 NSGA-II spends most of its first thousand evaluations finding where the front is. The
 quotient's relaxation knows more than the evaluator tells: for a policy and a weighting of
@@ -16,14 +16,14 @@ walks from the baselines along ``directions`` weightings spread over the front:
 3. keep walking where the weighted value grew, at most ``steps`` times (three: on map_10 and
    map_19 six found no better front at 1,000 evaluations, in half again the time).
 
-Every policy evaluated on the way joins the archive, and so the archive's front, from which
-half of the search's parents come (the mating of ``archive`` and ``small``); the first
-population is drawn as ``small`` draws it (put into it, the walks' policies crowded out the
-random ones, and the search ended lower on some maps: map_19 0.9989 of the best known front
-at 4,000 evaluations against ``small``'s 0.9993). The walks are deterministic (no random draws), so the configuration stays deterministic by seed.
-Where the relaxation cannot guide (no quotient, objectives that do not combine into a
+Every policy evaluated on the way joins the archive. ``guided`` (the paper's NSGA-II) puts
+them into its first population after the baselines; ``guided-small`` leaves them in the
+archive, whose front half of its parents come from (put into ``small``'s first population,
+they crowded out the random draws, and the search ended lower on map_19: 0.9989 of the best
+known front at 4,000 evaluations against ``small``'s 0.9993). The walks are deterministic
+(no random draws), so the configurations stay deterministic by seed. Where the relaxation cannot guide (no quotient, objectives that do not combine into a
 weighted sum, see :class:`~parley_core.quotient.improve.PolicyImprover`), nothing is walked
-and the search starts as ``small`` does; :class:`Walked` says which.
+and the search starts as its configuration does unguided; :class:`Walked` says which.
 """
 
 from __future__ import annotations

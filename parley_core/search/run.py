@@ -70,12 +70,11 @@ def search(
     )
     problem = PolicyProblem(family, archive, constraints=settings.constraints, budget=settings.max_evaluations)
     chosen = configuration(settings.algorithm)
-    # a guided search's walks are in the archive, whose front the mating draws parents from
-    walked = (
-        guided_start(family, archive, getattr(evaluator, "quotient", None), settings.max_evaluations)
-        if chosen.guided
-        else None
-    )
+    walked = None
+    if chosen.guided:  # the walks' policies are in the archive (whose front a mating may draw on)
+        walked = guided_start(family, archive, getattr(evaluator, "quotient", None), settings.max_evaluations)
+        if chosen.guided == "population" and len(walked.policies):
+            warm = walked.policies if warm is None or not len(warm) else np.vstack([warm, walked.policies])
     algorithm = chosen.build(settings.population, initial_population(family, settings, blend=chosen.blend, warm=warm))
     criteria = termination(settings, archive)
     algorithm.setup(problem, termination=TerminateIfAny(*criteria.values()), seed=settings.seed, verbose=False)
