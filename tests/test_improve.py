@@ -16,7 +16,7 @@ from parley_core.evaluate.cache import CachingEvaluator
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.model import Baseline, DecisionKind, Direction, Objective, Service
 from parley_core.quotient.improve import PolicyImprover
-from parley_core.search import SearchSettings, search
+from parley_core.search import SearchSettings, Stop, search
 from parley_core.search.guide import guided_start, weightings
 from parley_core.testing import family as make_family
 
@@ -182,3 +182,14 @@ def test_unbounded_probabilities_keep_their_value_past_the_horizon():
         value = evaluator.evaluate(policy)[0]
     _, own = improver.gradients(_indices(family, policy)[0])
     np.testing.assert_allclose(own * improver.signs, value, atol=2e-6)
+
+
+def test_the_walks_take_no_step_past_the_searchs_time_limit():
+    family = make_family("robot_grid", ["size=5", "seed=1", "horizon=45"])
+    with QuotientEvaluator(family, workers=1) as evaluator:
+        archive = CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
+        walked = guided_start(family, archive, evaluator.quotient, budget=None, seconds=0.0)
+        assert not len(walked.policies) and not walked.skipped
+        assert len(archive) == len(family.baseline_policies())  # the baselines only
+        result = search(family, evaluator, SearchSettings(algorithm="guided", generations=None, time_limit=0.5))
+    assert result.stopped_by is Stop.TIME and result.walked is not None

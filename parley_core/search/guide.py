@@ -79,10 +79,13 @@ def guided_start(
     budget: int | None,
     directions: int = DIRECTIONS,
     steps: int = STEPS,
+    seconds: float | None = None,
 ) -> Walked:
     """Walk from the baselines by policy improvement (module docstring); the policies
     evaluated on the way are in ``archive``. ``budget``: the search's evaluation budget (None:
-    unlimited), of which at most :data:`SHARE` is spent here."""
+    unlimited), of which at most :data:`SHARE` is spent here; ``seconds``: the search's time
+    limit (None: none), after which no walk takes another step (then the walks depend on the
+    machine's speed, as a time-limited search does anyway)."""
     from parley_core.quotient.improve import PolicyImprover
 
     start = time.perf_counter()
@@ -122,6 +125,8 @@ def guided_start(
     for _ in range(steps):
         moves = []
         for weights, current, level in walks:
+            if seconds is not None and time.perf_counter() - start > seconds:
+                break
             key = current.tobytes()
             if key not in gradients:
                 gradients[key] = improver.gradients(current)[0]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 
+import attrs
 import numpy as np
 from pymoo.core.termination import TerminateIfAny
 
@@ -72,9 +73,12 @@ def search(
     chosen = configuration(settings.algorithm)
     walked = None
     if chosen.guided:  # the walks' policies are in the archive (whose front a mating may draw on)
-        walked = guided_start(family, archive, getattr(evaluator, "quotient", None), settings.max_evaluations)
+        quotient = getattr(evaluator, "quotient", None)
+        walked = guided_start(family, archive, quotient, settings.max_evaluations, seconds=settings.time_limit)
         if chosen.guided == "population" and len(walked.policies):
             warm = walked.policies if warm is None or not len(warm) else np.vstack([warm, walked.policies])
+        if settings.time_limit is not None:  # the walks' time counts against the limit
+            settings = attrs.evolve(settings, time_limit=max(1e-3, settings.time_limit - walked.seconds))
     algorithm = chosen.build(settings.population, initial_population(family, settings, blend=chosen.blend, warm=warm))
     criteria = termination(settings, archive)
     algorithm.setup(problem, termination=TerminateIfAny(*criteria.values()), seed=settings.seed, verbose=False)
