@@ -205,27 +205,44 @@ def forward_step(t, horizon, listed, chosen, state_actions, action_entries, targ
 
 
 @njit(cache=True)
-def backward(top, bottom, slots, pointers, listed, horizon, chosen, action_entries, targets, probabilities,
-             rewards_by_window, window, has_until, left, right, until_steps, gain, terminal, store):  # fmt: skip
-    """:func:`back_step` from step ``top - 1`` down to ``bottom`` at the states
-    :func:`deviations` lists, step ``t``'s values read from ``store[slots[t + 1]]`` and
-    written to ``store[slots[t]]`` (one call: a numba call per step costs more than its work)."""
-    for t in range(top - 1, bottom - 1, -1):
+def backward(pointers, listed, horizon, chosen, action_entries, targets, probabilities, rewards_by_window, window,
+             has_until, left, right, until_steps, gain, terminal, values, next_a, next_b, now_a, now_b):  # fmt: skip
+    """:func:`back_step` from the horizon down to step 0 at the states :func:`deviations`
+    lists, step ``t``'s values kept only there (``values[i]``: the ``a`` and ``b`` values of
+    the ``i``-th listed entry); the dense ``next``/``now`` arrays carry one step to the next
+    (one call: a numba call per step costs more than its work)."""
+    channels = next_a.shape[1]
+    next_a[:] = 0.0
+    next_b[:] = 0.0
+    for t in range(horizon, -1, -1):
         here = listed[pointers[t] : pointers[t + 1]]
-        following, now = store[slots[t + 1]], store[slots[t]]
         back_step(t, horizon, here, chosen, action_entries, targets, probabilities, rewards_by_window[window[t]],
-                  has_until, left, right, until_steps, gain, terminal, following[0], following[1], now[0],
-                  now[1])  # fmt: skip
+                  has_until, left, right, until_steps, gain, terminal, next_a, next_b, now_a, now_b)  # fmt: skip
+        for i in range(pointers[t], pointers[t + 1]):
+            s = listed[i]
+            for c in range(channels):
+                values[i, 0, c] = now_a[s, c]
+                values[i, 1, c] = now_b[s, c]
+        next_a, now_a = now_a, next_a
+        next_b, now_b = now_b, next_b
 
 
 @njit(cache=True)
-def forward(start, end, slots, pointers, listed, on_policy, horizon, chosen, state_actions, action_entries, targets,
-            probabilities, rewards, rows, steps, coefficients, has_until, left, right, until_steps, state_decisions,
-            decisions, sizes, masses, score, same, stamp, known, store):  # fmt: skip
-    """:func:`forward_step` for the steps ``start .. end - 1``, the values of step ``t + 1`` in
-    ``store[slots[t + 1]]``, the occupancy in ``masses[t % 2]`` (moved into ``masses[1 - t % 2]``,
-    and zeroed behind it)."""
-    for t in range(start, end):
+def forward(pointers, listed, on_policy, horizon, chosen, state_actions, action_entries, targets, probabilities,
+            rewards, rows, steps, coefficients, has_until, left, right, until_steps, state_decisions, decisions,
+            sizes, masses, score, same, stamp, known, values, following_a, following_b):  # fmt: skip
+    """:func:`forward_step` for every step, the values of step ``t + 1`` spread from
+    ``values`` into the dense ``following`` arrays first (the successors the step reads are
+    all listed at ``t + 1``), the occupancy in ``masses[t % 2]`` (moved into
+    ``masses[1 - t % 2]``, and zeroed behind it)."""
+    channels = following_a.shape[1]
+    for t in range(horizon + 1):
+        if t < horizon:
+            for i in range(pointers[t + 1], pointers[t + 2]):
+                s = listed[i]
+                for c in range(channels):
+                    following_a[s, c] = values[i, 0, c]
+                    following_b[s, c] = values[i, 1, c]
         first, last = pointers[t], pointers[t + 1]
         count = 0
         for i in range(first, last):
@@ -236,10 +253,9 @@ def forward(start, end, slots, pointers, listed, on_policy, horizon, chosen, sta
             if on_policy[i]:
                 here[j] = listed[i]
                 j += 1
-        following = store[slots[t + 1]]
         mass, moved = masses[t % 2], masses[1 - t % 2]
         forward_step(t, horizon, here, chosen, state_actions, action_entries, targets, probabilities, rewards, rows,
-                     steps, coefficients, has_until, left, right, until_steps, following[0], following[1],
+                     steps, coefficients, has_until, left, right, until_steps, following_a, following_b,
                      state_decisions, decisions, sizes, mass[0], mass[1], moved[0], moved[1], score, same, stamp,
                      known)  # fmt: skip
         for s in here:

@@ -26,14 +26,11 @@ need not improve, which is why the search evaluates every step
 (:mod:`parley_core.search.guide`). Nothing here is a value the run reports: scores only
 choose which policies get evaluated.
 
-Memory: the backward values of every step are kept when they fit in :data:`MEMORY` bytes,
-else only every ``K``-th (``K`` about the square root of the horizon) and each stretch of
-``K`` recomputed from its checkpoint when the forward pass needs it (one more backward pass).
+Memory: a step's values are kept at the states listed for that step only (on map_10, 168,000
+entries instead of 101 x 21,073), each two floats per objective.
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
@@ -42,9 +39,6 @@ from parley_core.quotient import subfamily as k
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.gradient import backward, chosen_rewards, deviations, forward, representatives
-
-MEMORY = 256 * 2**20
-"""Bytes the backward values of all steps may take before checkpointing starts."""
 
 REACH_TOLERANCE = 1e-6
 REACH_SWEEPS = 200
@@ -74,35 +68,6 @@ class PolicyImprover:
         self.live = np.ones(n, dtype=bool)
         self.sizes = np.asarray(r.domain_sizes, dtype=np.int64)
         self.same = representatives(r.state_actions, r.action_entries, r.targets, r.probabilities, r.rewards)
-        self._values: np.ndarray | None = None
-        self._mass: np.ndarray | None = None
-        per_step = 2 * 8 * n * len(self.signs)
-        self.stride = 1 if (self.horizon + 2) * per_step <= MEMORY else max(1, math.isqrt(self.horizon + 1))
-
-    def _slot(self, t: int) -> int:
-        """Where step ``t``'s values live in :meth:`_store`: every step's, or every
-        ``stride``-th step's and the horizon's (then the stretch and scratch slots follow)."""
-        if self.stride == 1:
-            return t
-        return self.horizon // self.stride + 1 if t == self.horizon + 1 else t // self.stride
-
-    def _stretch(self, i: int) -> int:
-        return self.horizon // self.stride + 2 + i
-
-    def _scratch(self, t: int) -> int:
-        return self.horizon // self.stride + 2 + self.stride + t % 2
-
-    def _store(self, channels: int) -> np.ndarray:
-        slots = self.horizon + 2 if self.stride == 1 else self._scratch(1) + 1
-        if self._values is None or self._values.shape != (slots, 2, self.relaxation.states, channels):
-            self._values = np.empty((slots, 2, self.relaxation.states, channels))
-        return self._values
-
-    def _masses(self) -> np.ndarray:
-        """[step parity, pending or not, state]: the occupancy now and one step on."""
-        if self._mass is None:
-            self._mass = np.zeros((2, 2, self.relaxation.states))
-        return self._mass
 
     @property
     def available(self) -> bool:
@@ -142,7 +107,7 @@ class PolicyImprover:
                 self.left, self.right, True, *b.pred, REACH_TOLERANCE, REACH_SWEEPS,
             )  # fmt: skip
             terminal = np.ascontiguousarray(reach[:, None] * gain[None, :])
-        horizon, stride, n = self.horizon, self.stride, r.states
+        horizon, n = self.horizon, r.states
         rewards = (r.rewards, self.rows, self.steps, coefficients)
         ends = sorted({0, *[int(x) for x in self.steps if x <= horizon], horizon + 1})
         window = np.array([max(i for i, e in enumerate(ends) if e <= t) for t in range(horizon + 1)], dtype=np.int64)
@@ -153,36 +118,22 @@ class PolicyImprover:
         pointers, listed, on_policy = deviations(
             r.initial, horizon, chosen, r.state_actions, r.action_entries, r.targets, r.state_decisions, self.same
         )
-        store = self._store(channels)  # [slot, a or b, state, channel], reused: fresh pages cost more than the work
-        store[self._slot(horizon + 1)] = 0.0
-        common = (pointers, listed, horizon, chosen, r.action_entries, r.targets, r.probabilities, rewards_by_window,
-                  window, has_until, self.left, self.right, self.until_steps, gain, terminal, store)  # fmt: skip
-        # the first pass keeps every stride-th step (and the horizon's), the others in two scratch slots
-        slots = np.array([self._slot(t) if t % stride == 0 or t == horizon + 1 else self._scratch(t)
-                          for t in range(horizon + 2)], dtype=np.int64)  # fmt: skip
-        backward(horizon + 1, 0, slots, *common)
-        first = store[self._slot(0)]
-        values = np.array(first[0, r.initial] if has_until else first[1, r.initial])
+        # each step's values at its listed states only; dense arrays carry a step to the next
+        values_at = np.empty((len(listed), 2, channels))
+        dense = [np.empty((n, channels)) for _ in range(4)]
+        backward(pointers, listed, horizon, chosen, r.action_entries, r.targets, r.probabilities, rewards_by_window,
+                 window, has_until, self.left, self.right, self.until_steps, gain, terminal, values_at,
+                 *dense)  # fmt: skip
+        values = np.array(values_at[0, 0 if has_until else 1])  # the initial state, listed first at step 0
 
         score = np.zeros((channels, len(self.sizes), int(self.sizes.max()) if len(self.sizes) else 0))
-        masses = self._masses()
-        masses[:] = 0.0
+        masses = np.zeros((2, 2, n))  # [step parity, pending or not, state]
         masses[0, 0 if has_until else 1, r.initial] = 1.0
         stamp, known = np.zeros(r.actions + 1, dtype=np.int64), np.empty((r.actions, channels))
-        stretches = (
-            [(0, horizon + 1)]
-            if stride == 1
-            else [(t, min(t + stride, horizon + 1)) for t in range(0, horizon + 1, stride)]
-        )
-        for start, end in stretches:  # a stretch needs the values of start+1 .. end
-            if stride > 1:
-                slots[start + 1 : end] = [self._stretch(t - start - 1) for t in range(start + 1, end)]
-                slots[end] = self._slot(end)
-                backward(end, start + 1, slots, *common)
-            forward(start, end, slots, pointers, listed, on_policy, horizon, chosen, r.state_actions, r.action_entries,
-                    r.targets, r.probabilities, *rewards, has_until, self.left, self.right, self.until_steps,
-                    r.state_decisions, r.decisions, self.sizes, masses, score, self.same, stamp, known,
-                    store)  # fmt: skip
+        forward(pointers, listed, on_policy, horizon, chosen, r.state_actions, r.action_entries, r.targets,
+                r.probabilities, *rewards, has_until, self.left, self.right, self.until_steps, r.state_decisions,
+                r.decisions, self.sizes, masses, score, self.same, stamp, known, values_at, dense[0],
+                dense[1])  # fmt: skip
         for d, size in enumerate(self.sizes):
             score[:, d, size:] = -np.inf
         return score, values
