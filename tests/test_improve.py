@@ -158,12 +158,13 @@ def test_the_walks_find_policies_the_baselines_do_not_dominate_within_the_budget
 
 def test_weightings_spread_over_the_directions_and_scale_by_the_values():
     values = np.array([[0.0, -100.0], [1.0, -10.0]])
-    weights = weightings(values, np.ones(2), 4)
+    weights = weightings(values, 4)
     assert weights.shape == (4, 2) and (weights > 0).all()
     # scaled by the spread (1 and 90): the middle directions weigh a unit of the second 1/90 as much
     middle = weights[1] * np.array([1.0, 90.0])
     assert middle[0] == pytest.approx(np.cos(2 * np.pi / 10)) and middle[1] == pytest.approx(np.sin(2 * np.pi / 10))
-    assert weightings(np.array([[1.0, 2.0, 3.0]]), np.ones(3), 6).shape[1] == 3
+    three = weightings(np.array([[1.0, 2.0, 3.0]]), 6)
+    assert three.shape == (6, 3) and (three > 0).all()
 
 
 def test_unbounded_probabilities_keep_their_value_past_the_horizon():

@@ -21,13 +21,15 @@ them into its first population after the baselines; ``guided-small`` leaves them
 archive, whose front half of its parents come from (put into ``small``'s first population,
 they crowded out the random draws, and the search ended lower on map_19: 0.9989 of the best
 known front at 4,000 evaluations against ``small``'s 0.9993). The walks are deterministic
-(no random draws), so the configurations stay deterministic by seed. Where the relaxation cannot guide (no quotient, objectives that do not combine into a
-weighted sum, see :class:`~parley_core.quotient.improve.PolicyImprover`), nothing is walked
-and the search starts as its configuration does unguided; :class:`Walked` says which.
+(no random draws), so the configurations stay deterministic by seed. Where the relaxation
+cannot guide (no quotient, objectives that do not combine into a weighted sum, see
+:class:`~parley_core.quotient.improve.PolicyImprover`, no baseline to start from), nothing is
+walked and the search starts as its configuration does unguided; :class:`Walked` says which.
 """
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -51,24 +53,25 @@ class Walked:
     skipped: str = ""
 
 
-def weightings(values: np.ndarray, signs: np.ndarray, count: int) -> np.ndarray:
+def weightings(values: np.ndarray, count: int) -> np.ndarray:
     """``count`` weightings (rows, >= 0) spread over the directions between the objectives,
-    each objective scaled by the spread of ``values`` (sign space) so that no objective's
-    units decide the spacing; with more than two objectives, the corners' midpoints and a
-    fixed lattice of the simplex."""
-    signed = np.asarray(values, dtype=float) * signs
-    finite = np.where(np.isfinite(signed), signed, np.nan)
-    span = np.nanmax(finite, axis=0) - np.nanmin(finite, axis=0) if len(finite) else np.ones(len(signs))
+    each objective scaled by the spread of ``values`` (rows of objective values, any sign) so
+    that no objective's units decide the spacing; with more than two objectives, the points
+    of a lattice of the simplex inside it."""
+    values = np.asarray(values, dtype=float)
+    objectives = values.shape[1]
+    finite = np.where(np.isfinite(values), values, np.nan)
+    span = np.nanmax(finite, axis=0) - np.nanmin(finite, axis=0) if len(finite) else np.ones(objectives)
     span = np.where(np.isfinite(span) & (span > 1e-12), span, 1.0)
-    if len(signs) == 2:
+    if objectives == 2:
         angles = np.linspace(0.0, np.pi / 2, count + 2)[1:-1]
         raw = np.column_stack([np.cos(angles), np.sin(angles)])
     else:
-        parts = max(2, round(count ** (1 / max(1, len(signs) - 1))))
-        grid = np.array(np.meshgrid(*[np.arange(parts + 1)] * len(signs))).reshape(len(signs), -1).T
+        parts = objectives  # the smallest lattice with at least ``count`` points inside the simplex
+        while math.comb(parts - 1, objectives - 1) < count:
+            parts += 1
+        grid = np.array(np.meshgrid(*[np.arange(parts + 1)] * objectives)).reshape(objectives, -1).T
         raw = grid[(grid.sum(axis=1) == parts) & (grid > 0).all(axis=1)].astype(float)
-        if not len(raw):
-            raw = np.ones((1, len(signs)))
     return raw / span
 
 
@@ -95,15 +98,14 @@ def guided_start(
     improver = PolicyImprover(family, quotient)
     if not improver.available:
         return Walked(policies=empty, seconds=time.perf_counter() - start, skipped=improver.unavailable)
-    cap = None if budget is None else max(0, int(SHARE * budget))
     domains = [np.asarray(d.service.values, dtype=np.int64) for d in family.decisions]
     positions = [{int(v): i for i, v in enumerate(domain)} for domain in domains]
 
     def indices(policy: np.ndarray) -> np.ndarray:
         return np.array([where[int(v)] for where, v in zip(positions, policy)], dtype=np.int64)
 
-    def policy(positions: np.ndarray) -> np.ndarray:
-        return np.array([domain[i] for domain, i in zip(domains, positions)], dtype=np.int64)
+    def policy(at: np.ndarray) -> np.ndarray:
+        return np.array([domain[i] for domain, i in zip(domains, at)], dtype=np.int64)
 
     baselines = np.array([p.values for p in family.baseline_policies()], dtype=np.int64)
     baselines = baselines.reshape(-1, len(family.decisions))
@@ -113,11 +115,10 @@ def guided_start(
     start_values = archive.evaluate(baselines, budget=room) * signs
     start_values = np.where(np.isfinite(start_values), start_values, -np.inf)
     before = len(archive)
-    if budget is not None:
-        cap = min(cap if cap is not None else budget, max(0, budget - before))
+    cap = None if budget is None else min(int(SHARE * budget), max(0, budget - before))
     if not np.isfinite(start_values).any(axis=1).any():
         return Walked(policies=empty, seconds=time.perf_counter() - start, skipped="no baseline was evaluated")
-    directions_ = weightings(start_values, np.ones(len(signs)), directions)
+    directions_ = weightings(start_values, directions)
     firsts = [int(np.argmax(start_values @ w)) for w in directions_]
     walks = [(w, indices(baselines[i]), float(start_values[i] @ w)) for w, i in zip(directions_, firsts)]
     gradients: dict[bytes, np.ndarray] = {}
