@@ -98,7 +98,12 @@ def _prepared(case: str, options: tuple[str, ...], width: int | None):
 
 
 def one_run(instance: dict, algorithm: str, seed: int, budget: int) -> dict:
-    """A search's archive values in evaluation order, with the time each was known."""
+    """A search's archive values in evaluation order, with the time each was known.
+    ``algorithm`` may name a budget of its own (``polished@1000``): configurations that
+    split their budget between stages (``polished``) are measured at the budget they were
+    given, not at a checkpoint of a longer run."""
+    name, _, own = algorithm.partition("@")
+    budget = min(budget, int(own)) if own else budget
     family, evaluator = _prepared(instance["case"], tuple(instance["options"]), instance.get("width"))
     archive = CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
     stamps: list[tuple[int, float]] = []
@@ -107,12 +112,13 @@ def one_run(instance: dict, algorithm: str, seed: int, budget: int) -> dict:
     def progress(_done: int) -> None:
         stamps.append((len(archive), time.perf_counter() - start))
 
-    settings = SearchSettings(algorithm=algorithm, generations=None, max_evaluations=budget, seed=seed)
+    settings = SearchSettings(algorithm=name, generations=None, max_evaluations=budget, seed=seed)
     search(family, evaluator, settings, archive=archive, progress=progress)
     return {
         "instance": instance["key"],
         "algorithm": algorithm,
         "seed": seed,
+        "budget": budget,
         "values": archive.values.tolist(),
         "stamps": stamps,
         "baseline": [list(map(float, row)) for row in evaluator.evaluate(_baseline_rows(family))],
@@ -180,12 +186,19 @@ def published_fronts(instance: dict) -> np.ndarray:
     return np.array(rows, dtype=float).reshape(-1, 2)
 
 
-def fraction_curve(values: np.ndarray, directions, reference, best: float, budget: int) -> list[float]:
+def fraction_curve(values: np.ndarray, directions, reference, best: float, budget: int, own: int) -> list[float]:
+    """The fraction after each checkpoint up to ``budget``; NaN past the run's ``own`` budget
+    (a run that stopped early, having nothing left to try, keeps its last value)."""
     return [
-        metrics.hypervolume(values[:k], directions, reference) / best if k <= max(len(values), 1) else float("nan")
+        metrics.hypervolume(values[:k], directions, reference) / best if k <= own else float("nan")
         for k in CHECKPOINTS
         if k <= budget
     ]
+
+
+def _cell(fractions: np.ndarray) -> str:
+    """Median (min) of a checkpoint's fractions; a dash past a configuration's own budget."""
+    return "-" if np.isnan(fractions).all() else f"{np.median(fractions):.4f} ({fractions.min():.4f})"
 
 
 def seconds_at(stamps: list, k: int) -> float:
@@ -266,14 +279,16 @@ def main() -> None:
         for algorithm in algorithms:
             curves = np.array(
                 [
-                    fraction_curve(np.array(r["values"]), directions, reference, best, args.budget)
+                    fraction_curve(
+                        np.array(r["values"]), directions, reference, best, args.budget, r.get("budget", args.budget)
+                    )
                     for r in mine
                     if r["algorithm"] == algorithm and r["seed"] > 0
                 ]
             )
             seconds = [seconds_at(r["stamps"], args.budget) for r in mine if r["algorithm"] == algorithm and r["seed"]]
             table[key][algorithm] = curves.tolist()
-            cells = [f"{np.median(curves[:, i]):.4f} ({curves[:, i].min():.4f})" for i in range(len(checkpoints))]
+            cells = [_cell(curves[:, i]) for i in range(len(checkpoints))]
             print(f"| {algorithm} | " + " | ".join(cells) + f" | {np.median(seconds):.1f} |")
 
     print("\n### every published map and seed: median (min) fraction\n")
@@ -290,7 +305,7 @@ def main() -> None:
         target = medians.get("paper", median)[-1]
         reach = next((str(k) for k, m in zip(checkpoints, median) if m >= target), "not within the budget")
         curves = np.vstack([table[k][algorithm] for k in published])
-        cells = [f"{median[i]:.4f} ({curves[:, i].min():.4f})" for i in range(len(checkpoints))]
+        cells = [_cell(curves[:, i]) for i in range(len(checkpoints))]
         print(f"| {algorithm} | " + " | ".join(cells) + f" | {reach} |")
     print(f"\ntotal {time.perf_counter() - started:.0f} s")
 

@@ -201,6 +201,18 @@ def summary(result: RunResult) -> dict[str, Any]:
                 if search.walked is not None
                 else {}
             ),
+            **(
+                {
+                    "polished": {
+                        "evaluations": search.polished.evaluations,
+                        "expanded_policies": search.polished.expanded,
+                        "seconds": round(search.polished.seconds, 4),
+                        "skipped": search.polished.skipped,
+                    }
+                }
+                if search.polished is not None
+                else {}
+            ),
         },
         "evaluator": result.evaluator.value,
         "evaluator_details": result.evaluator_info,

@@ -69,8 +69,10 @@ def test_the_paper_configuration_searches_as_before(key):
 @pytest.mark.parametrize("algorithm", sorted(ALGORITHMS))
 def test_every_configuration_is_deterministic_by_seed(web_ids, algorithm):
     family, evaluator = web_ids
+    # ten generations: ``polished`` leaves 70 % of them to polishing, and its first stage must
+    # get past a first population that the baselines and the walks fill without a random draw
     runs = [
-        search(family, evaluator, SearchSettings(algorithm=algorithm, population=12, generations=4, seed=seed))
+        search(family, evaluator, SearchSettings(algorithm=algorithm, population=12, generations=10, seed=seed))
         for seed in (5, 5, 6)
     ]
     assert runs[0].policies.tolist() == runs[1].policies.tolist()
@@ -174,3 +176,17 @@ def test_local_search_children_are_new_one_step_neighbours_of_the_front(robot):
         # and that member's reachable states consult that decision
         near = np.flatnonzero((differences.sum(axis=1) == 1) & (differences.max(axis=1) == 1))
         assert any(masks[i][np.flatnonzero(differences[i])[0]] for i in near)
+
+
+@pytest.mark.parametrize("algorithm", sorted(ALGORITHMS))
+def test_every_configuration_ends_on_a_family_smaller_than_its_budget(algorithm):
+    """Nine policies and a budget of 50: the search evaluates each once and stops (it used
+    to loop for ever, the mating producing only policies already evaluated)."""
+    from test_improve import two_stages
+
+    family = make_family(two_stages(), prune=True)
+    settings = SearchSettings(algorithm=algorithm, population=4, generations=None, max_evaluations=50, seed=1)
+    with QuotientEvaluator(family, workers=1) as evaluator:
+        result = search(family, evaluator, settings)
+    assert result.evaluations <= 9
+    assert result.stopped_by in (Stop.STALLED, Stop.EXHAUSTED)

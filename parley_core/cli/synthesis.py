@@ -281,6 +281,15 @@ def _synthesize(make, warm_start: Path | None = None) -> None:
             if not walked.skipped
             else f"guided: no policy improvement ({walked.skipped}); the search started without it"
         )
+    if search.polished is not None:
+        polished = search.polished
+        console.print(
+            f"polished: {polished.evaluations} of the evaluations were one-decision changes of the front, "
+            f"chosen by the hypervolume the relaxation predicts for them ({polished.expanded} front policies "
+            f"scored, {polished.seconds:.1f} s)"
+            if not polished.skipped
+            else f"polished: not polished ({polished.skipped}); the search had the whole budget"
+        )
     for name, count in info["infinite_values"].items():
         console.print(
             f"{count} of {search.evaluations} evaluated policies have an infinite {name} "

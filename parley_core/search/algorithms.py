@@ -19,7 +19,10 @@ first population the baselines and random policies (:func:`~parley_core.search.r
   found by walks of policy improvement on the quotient's relaxation
   (:mod:`parley_core.search.guide`), evaluated as part of the budget;
 - ``guided-small``: ``small`` started by the same walks, whose policies reach it through the
-  archive's front only.
+  archive's front only;
+- ``polished``: ``guided`` for 30 % of the budget, then the rest spent on one-decision changes
+  of the archive's front, ranked by the hypervolume the relaxation's scores predict they add
+  (:mod:`parley_core.search.polish`).
 
 benchmarks/search.py measures them against each other.
 """
@@ -53,6 +56,9 @@ class Configuration:
     guided: str = ""
     """Whether the search first walks by policy improvement (:func:`~parley_core.search.guide.guided_start`),
     and where the walks' policies go: ``"population"`` (the first one) or ``"archive"`` (only there)."""
+    polish: float = 0.0
+    """The share of the evaluation budget (or of the time limit) left to polishing the front by
+    predicted hypervolume (:func:`~parley_core.search.polish.polish`) after the pymoo search."""
 
 
 def _paper(population: int, sampling: np.ndarray) -> Algorithm:
@@ -121,6 +127,13 @@ ALGORITHMS: dict[str, Configuration] = {
         ),
         Configuration(
             "guided-small", "small, started by policy improvement on the relaxation", _small, guided="archive"
+        ),
+        Configuration(
+            "polished",
+            "guided for 30% of the budget, then one-decision changes of the front ranked by predicted hypervolume",
+            _paper,
+            guided="population",
+            polish=0.7,
         ),
     )
 }

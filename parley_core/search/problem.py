@@ -51,6 +51,10 @@ class Genes:
         return genes
 
 
+STALL = 25
+"""Generations in a row without a new policy after which a search ends (:class:`Stalled`)."""
+
+
 class EvaluationBudget(Termination):
     """Terminates once the archive holds ``budget`` policies."""
 
@@ -61,6 +65,27 @@ class EvaluationBudget(Termination):
 
     def _update(self, algorithm) -> float:
         return len(self.archive) / self.budget
+
+
+class Stalled(Termination):
+    """Terminates once ``generations`` generations in a row evaluated no new policy: the
+    mating keeps producing policies already evaluated (a family smaller than the budget, or
+    a population that has converged), and without this a search limited only by evaluations
+    would never end."""
+
+    def __init__(self, archive: CachingEvaluator, generations: int = STALL) -> None:
+        super().__init__()
+        self.archive = archive
+        self.generations = generations
+        self.seen = -1
+        self.idle = 0
+
+    def _update(self, algorithm) -> float:
+        if len(self.archive) == self.seen:
+            self.idle += 1
+        else:
+            self.seen, self.idle = len(self.archive), 0
+        return self.idle / self.generations
 
 
 class PolicyProblem(Problem):
@@ -121,4 +146,5 @@ def termination(settings: SearchSettings, archive: CachingEvaluator) -> dict[Sto
         criteria[Stop.EVALUATIONS] = EvaluationBudget(archive, settings.max_evaluations)
     if settings.time_limit is not None:
         criteria[Stop.TIME] = TimeBasedTermination(settings.time_limit)
+    criteria[Stop.STALLED] = Stalled(archive)
     return criteria

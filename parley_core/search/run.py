@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import time
 
 import attrs
@@ -14,6 +15,7 @@ from parley_core.model import Family
 from parley_core.progress import Progress
 from parley_core.search.algorithms import configuration
 from parley_core.search.guide import guided_start
+from parley_core.search.polish import Polished, polish, unavailable
 from parley_core.search.problem import Genes, PolicyProblem, termination
 from parley_core.search.settings import SearchResult, SearchSettings, Stop
 
@@ -69,8 +71,22 @@ def search(
     archive = (
         archive if archive is not None else CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
     )
-    problem = PolicyProblem(family, archive, constraints=settings.constraints, budget=settings.max_evaluations)
     chosen = configuration(settings.algorithm)
+    total = _budget(settings)
+    limit = settings.time_limit
+    polished = None
+    if chosen.polish:
+        reason = unavailable(family, getattr(evaluator, "quotient", None), constrained=bool(settings.constraints))
+        if reason:
+            polished = Polished(evaluations=0, expanded=0, seconds=0.0, skipped=reason)
+    if chosen.polish and polished is None:  # the pymoo search gets its share, polishing the rest
+        if total is not None:
+            settings = attrs.evolve(
+                settings, generations=None, max_evaluations=max(1, round((1 - chosen.polish) * total))
+            )
+        if limit is not None:
+            settings = attrs.evolve(settings, time_limit=(1 - chosen.polish) * limit)
+    began = time.perf_counter()
     walked = None
     if chosen.guided:  # the walks' policies are in the archive (whose front a mating may draw on)
         quotient = getattr(evaluator, "quotient", None)
@@ -79,10 +95,10 @@ def search(
             warm = walked.policies if warm is None or not len(warm) else np.vstack([warm, walked.policies])
         if settings.time_limit is not None:  # the walks' time counts against the limit
             settings = attrs.evolve(settings, time_limit=max(1e-3, settings.time_limit - walked.seconds))
+    problem = PolicyProblem(family, archive, constraints=settings.constraints, budget=settings.max_evaluations)
     algorithm = chosen.build(settings.population, initial_population(family, settings, blend=chosen.blend, warm=warm))
     criteria = termination(settings, archive)
     algorithm.setup(problem, termination=TerminateIfAny(*criteria.values()), seed=settings.seed, verbose=False)
-    start = time.perf_counter()
     generation = 0
     stopped_by = None
     try:
@@ -91,8 +107,22 @@ def search(
             generation += 1
             if progress:
                 progress(1)
+        if chosen.polish and polished is None:
+            left = None if limit is None else max(0.0, limit - (time.perf_counter() - began))
+            polished = polish(
+                family,
+                archive,
+                getattr(evaluator, "quotient", None),
+                total if total is not None else sys.maxsize,
+                settings.seed,
+                seconds=left,
+                constrained=bool(settings.constraints),
+                progress=progress,
+            )
     except KeyboardInterrupt:
         stopped_by = Stop.INTERRUPTED
+    if stopped_by is None and polished is not None and not polished.skipped:
+        stopped_by = _polish_stop(polished, archive, total, limit, time.perf_counter() - began)
     if stopped_by is None:
         stopped_by = next((stop for stop, c in criteria.items() if c.has_terminated()), Stop.GENERATIONS)
     return SearchResult(
@@ -100,7 +130,25 @@ def search(
         values=archive.values,
         evaluations=len(archive),
         generations=generation,
-        seconds=time.perf_counter() - start + (walked.seconds if walked else 0.0),
+        seconds=time.perf_counter() - began,
         stopped_by=stopped_by,
         walked=walked,
+        polished=polished,
     )
+
+
+def _budget(settings: SearchSettings) -> int | None:
+    """The evaluations a search may spend: the budget, or what the generations would
+    evaluate (None: only a time limit)."""
+    budgets = [b for b in (settings.max_evaluations,) if b is not None]
+    if settings.generations is not None:
+        budgets.append(settings.population * settings.generations)
+    return min(budgets) if budgets else None
+
+
+def _polish_stop(polished: Polished, archive: CachingEvaluator, total: int | None, limit, seconds: float) -> Stop:
+    if total is not None and len(archive) >= total:
+        return Stop.EVALUATIONS
+    if limit is not None and seconds >= limit:
+        return Stop.TIME
+    return Stop.EXHAUSTED

@@ -13,6 +13,7 @@ from parley_core.constraints import Constraint
 
 if TYPE_CHECKING:
     from parley_core.search.guide import Walked
+    from parley_core.search.polish import Polished
 
 
 def _positive_or_none(_instance, attribute: attrs.Attribute, value) -> None:
@@ -58,6 +59,10 @@ class Stop(enum.Enum):
     EVALUATIONS = "evaluations"
     TIME = "time"
     INTERRUPTED = "interrupted"
+    STALLED = "stalled"
+    """No new policy in 25 generations in a row (:class:`~parley_core.search.problem.Stalled`)."""
+    EXHAUSTED = "exhausted"
+    """Polishing found no neighbour of the front left to try (:mod:`parley_core.search.polish`)."""
 
 
 @frozen(kw_only=True)
@@ -72,6 +77,8 @@ class SearchResult:
     stopped_by: Stop
     walked: Walked | None = None
     """The walks of policy improvement a ``guided`` search started from (None: not guided)."""
+    polished: Polished | None = None
+    """What polishing the front did in a ``polished`` search (None: not polished)."""
 
     @property
     def interrupted(self) -> bool:

@@ -1,0 +1,228 @@
+"""Polishing a front by predicted hypervolume (``polished``): the relaxation's scores as a surrogate.
+
+After a search has found roughly where the front is, most of what it still lacks is close
+to points it already has: the same policies with one decision changed. There are many such
+neighbours (on a 10x10 map, 900 per policy) and the evaluator's budget is small, so which
+ones to evaluate is the whole question. :class:`~parley_core.quotient.improve.PolicyImprover`
+answers it: its scores give, for every decision and value, the first-order change of each
+objective (by the performance-difference lemma, on the quotient's relaxation), so one
+computation of a front policy's scores predicts the values of all its one-decision
+neighbours. Each round:
+
+1. ``expand`` front policies not yet expanded get their scores (the front's two ends and
+   the policies beside its widest gaps first: on map_10 and map_12 that reached 0.99974 and
+   0.99978 of the best known front at 1,000 evaluations, against 0.99967 and 0.99966 for
+   front policies drawn at random), and their neighbours join a pool with their predicted
+   values;
+2. the pool's predictions are ranked by the hypervolume each would add to the current front
+   (exactly, for two objectives), then those the front dominates by how near below it they
+   are;
+3. the best ``batch`` of them not yet evaluated are evaluated (by the search's evaluator,
+   through the archive: they count towards the budget and are the values the run reports).
+
+Predictions only choose what to evaluate; a wrong prediction costs one evaluation. Where the
+relaxation cannot predict (no quotient, objectives that do not combine into a weighted sum),
+or the family has other than two objectives, or the search has constraints (the ranking
+does not take them into account yet), nothing is polished and :class:`Polished` says why.
+Deterministic by seed.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+from attrs import frozen
+
+from parley_core.evaluate.cache import CachingEvaluator
+from parley_core.metrics import nondominated
+from parley_core.model import Family
+
+BATCH = 20
+"""Policies evaluated a round."""
+EXPAND = 4
+"""Front policies whose scores are computed a round (expanding fewer, only while the pool
+held fewer than ``batch`` predictions above the front, reached 0.9981 and 0.9976 on map_10 and
+map_12 instead of 0.9998: predictions from earlier, now dominated parents mislead)."""
+
+
+@frozen(kw_only=True)
+class Polished:
+    """What :func:`polish` did: evaluations spent, front policies expanded (scores computed)."""
+
+    evaluations: int
+    expanded: int
+    seconds: float
+    skipped: str = ""
+
+
+def staircase(front: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A two-objective front (rows, both maximised, mutually non-dominated) sorted by the
+    first objective: its first and second coordinates (the second then decreasing)."""
+    order = np.argsort(front[:, 0], kind="stable")
+    return front[order, 0], front[order, 1]
+
+
+def dominated(front: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Which ``points`` some point of ``front`` weakly dominates (two objectives, maximised)."""
+    xs, ys = staircase(front)
+    at = np.searchsorted(xs, points[:, 0], side="left")  # the first front point at least as far right
+    height = np.where(at < len(xs), ys[np.minimum(at, len(xs) - 1)], -np.inf)
+    return height >= points[:, 1]
+
+
+def shortfall(front: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """How far below the staircase of ``front`` each of ``points`` is, as a share of the
+    front's extent in each objective (the smaller of the two; 0 for a point on or above it)."""
+    xs, ys = staircase(front)
+    span = np.maximum(np.ptp(front, axis=0), 1e-12) if len(front) > 1 else np.ones(2)
+    at = np.searchsorted(xs, points[:, 0], side="left")
+    height = np.where(at < len(xs), ys[np.minimum(at, len(xs) - 1)], -np.inf)
+    down = np.clip(height - points[:, 1], 0.0, None) / span[1]
+    right = np.searchsorted(-ys, -points[:, 1], side="right") - 1  # the last front point at least as high
+    across = np.where(right >= 0, np.clip(xs[np.maximum(right, 0)] - points[:, 0], 0.0, None) / span[0], np.inf)
+    return np.minimum(down, across)
+
+
+def contributions(front: np.ndarray, points: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """The hypervolume (above ``reference``) each of ``points`` would add to ``front`` alone
+    (two objectives, maximised; points above the reference): the area under the point's
+    corner and above the front's staircase, by prefix sums over the staircase's steps."""
+    xs, ys = staircase(front)
+    keep = (xs > reference[0]) & (ys > reference[1])
+    xs, ys = xs[keep], ys[keep]
+    lefts = np.concatenate([[reference[0]], xs])  # step i covers (lefts[i], lefts[i + 1]] at heights[i]
+    heights = np.concatenate([ys, [reference[1]]])
+    widths = np.diff(lefts)
+    area = np.concatenate([[0.0], np.cumsum(widths * heights[:-1])])
+    width = np.concatenate([[0.0], np.cumsum(widths)])
+    x, y = points[:, 0], points[:, 1]
+    first = np.searchsorted(-heights, -y, side="right")  # the first step lower than the point
+    last = np.searchsorted(lefts, x, side="left") - 1  # the step the point's corner lies in
+    last = np.maximum(last, 0)
+    inner = np.minimum(first, last)
+    whole = (y * (width[last] - width[inner])) - (area[last] - area[inner])  # steps first..last-1
+    part = (y - heights[last]) * (x - lefts[last])
+    return np.where((first <= last) & (x > reference[0]) & (y > reference[1]), whole + part, 0.0)
+
+
+def unavailable(family: Family, quotient, constrained: bool = False) -> str:
+    """Why :func:`polish` cannot run on this family and evaluator ("": it can), so that a
+    search that would polish gives the whole budget to its first stage instead."""
+    found = _improver(family, quotient, constrained)
+    return found if isinstance(found, str) else ""
+
+
+def _improver(family: Family, quotient, constrained: bool):
+    from parley_core.quotient.improve import PolicyImprover
+
+    if len(family.objectives) != 2:
+        return "polishing ranks two objectives only"
+    if constrained:
+        return "polishing does not rank by constraints"
+    if quotient is None:
+        return "the evaluator has no quotient"
+    improver = PolicyImprover(family, quotient)
+    return improver if improver.available else improver.unavailable
+
+
+def polish(
+    family: Family,
+    archive: CachingEvaluator,
+    quotient,
+    budget: int,
+    seed: int,
+    *,
+    batch: int = BATCH,
+    expand: int = EXPAND,
+    seconds: float | None = None,
+    constrained: bool = False,
+    progress: Callable[[int], None] | None = None,
+) -> Polished:
+    """Spend the archive's evaluations up to ``budget`` on the neighbours of its front with the
+    largest predicted hypervolume gain (module docstring). ``seconds``: stop after this long
+    (None: no limit); ``progress`` is called after every round."""
+    start = time.perf_counter()
+    improver = _improver(family, quotient, constrained)
+    if isinstance(improver, str):
+        return Polished(evaluations=0, expanded=0, seconds=time.perf_counter() - start, skipped=improver)
+    if not len(archive):
+        return Polished(evaluations=0, expanded=0, seconds=0.0, skipped="nothing evaluated to polish")
+    rng = np.random.default_rng(seed)
+    domains = [np.asarray(d.service.values, dtype=np.int64) for d in family.decisions]
+    positions = [{int(v): i for i, v in enumerate(domain)} for domain in domains]
+    sizes = np.array([len(domain) for domain in domains], dtype=np.int64)
+    table = np.full((len(domains), int(sizes.max())), -1, dtype=np.int64)  # [decision, position] -> value
+    for d, domain in enumerate(domains):
+        table[d, : len(domain)] = domain
+    signs = improver.signs
+    directions = [o.direction for o in family.objectives]
+    expanded: set[bytes] = set()
+    parents: list[np.ndarray] = []  # pool: parent policy, decision, new value, predicted values
+    pool_parent = np.zeros(0, dtype=np.int64)
+    pool_decision = np.zeros(0, dtype=np.int64)
+    pool_value = np.zeros(0, dtype=np.int64)
+    pool_predicted = np.zeros((0, 2))
+    used = np.zeros(0, dtype=bool)
+    before = len(archive)
+    while len(archive) < budget:
+        if seconds is not None and time.perf_counter() - start > seconds:
+            break
+        values = archive.values * signs
+        finite = np.isfinite(values).all(axis=1)
+        members = np.flatnonzero(finite)[nondominated(archive.values[finite], directions)]
+        front = values[members]
+        reference = values[finite].min(axis=0) - 1e-9 * np.maximum(1.0, np.abs(values[finite].min(axis=0)))
+        policies, _ = archive.rows(members)
+        fresh = [i for i in range(len(members)) if policies[i].tobytes() not in expanded]
+        # the front's ends and the policies beside its widest gaps first (ties in seeded order)
+        order = np.argsort(front[:, 0], kind="stable")
+        gaps = (front[order[1:], 0] - front[order[:-1], 0]) * (front[order[:-1], 1] - front[order[1:], 1])
+        priority = np.zeros(len(front))
+        priority[order[:-1]] = gaps
+        priority[order[1:]] = np.maximum(priority[order[1:]], gaps)
+        priority[order[[0, -1]]] = np.inf
+        shuffled = rng.permutation(len(fresh))
+        picks = shuffled[np.argsort(-priority[np.asarray(fresh, dtype=np.int64)][shuffled], kind="stable")]
+        for i in picks[:expand] if fresh else []:
+            parent = policies[fresh[i]]
+            expanded.add(parent.tobytes())
+            at = np.array([where[int(v)] for where, v in zip(positions, parent)], dtype=np.int64)
+            scores, own = improver.gradients(at)
+            delta = scores - scores[:, np.arange(len(at)), at][:, :, None]  # [objective, decision, value]
+            valid = np.isfinite(delta).all(axis=0)
+            valid[np.arange(len(at)), at] = False
+            decision, position = np.nonzero(valid)
+            parents.append(parent)
+            pool_parent = np.concatenate([pool_parent, np.full(len(decision), len(parents) - 1)])
+            pool_decision = np.concatenate([pool_decision, decision])
+            pool_value = np.concatenate([pool_value, table[decision, position]])
+            pool_predicted = np.vstack([pool_predicted, (own[:, None] + delta[:, decision, position]).T])
+            used = np.concatenate([used, np.zeros(len(decision), dtype=bool)])
+        open_ = np.flatnonzero(~used)
+        if not len(open_):
+            break
+        predicted = pool_predicted[open_]
+        below = dominated(front, predicted)
+        # the predicted gain first; where none is predicted, the nearest below the front
+        rank = np.where(below, -shortfall(front, predicted) - 1.0, 0.0)
+        rank[~below] = contributions(front, predicted[~below], reference)
+        chosen: list[np.ndarray] = []
+        keys: set[bytes] = set()
+        for j in open_[np.argsort(-rank, kind="stable")]:
+            used[j] = True
+            child = parents[pool_parent[j]].copy()
+            child[pool_decision[j]] = pool_value[j]
+            key = child.tobytes()
+            if key in keys or child in archive:
+                continue
+            keys.add(key)
+            chosen.append(child)
+            if len(chosen) >= min(batch, budget - len(archive)):
+                break
+        if chosen:
+            archive.evaluate(np.array(chosen, dtype=np.int64))
+        if progress:
+            progress(1)
+    return Polished(evaluations=len(archive) - before, expanded=len(expanded), seconds=time.perf_counter() - start)
