@@ -27,7 +27,7 @@ from parley_core.model import Family, Front, Policy, SystemModel, Valued
 from parley_core.progress import NullReporter, Reporter
 from parley_core.robust import ScenarioModel
 from parley_core.scenarios import ScenarioSet
-from parley_core.search import SearchResult, SearchSettings, search
+from parley_core.search import SearchResult, SearchSettings, configuration, search
 from parley_core.verify import Verification, VerifyPath, by_search, check_with_storm, not_checked
 
 if TYPE_CHECKING:
@@ -229,7 +229,8 @@ def run(
         archive = CachingEvaluator(engine, len(family.decisions), len(family.objectives))
         with _timed(timings, "baselines"):
             baseline = evaluate(family, family.baseline_policies(), archive, reporter, stage="baselines")
-        reporter.stage("search", settings.generations)
+        # a polished search advances by generations, then by polishing rounds: no known total
+        reporter.stage("search", None if configuration(settings.algorithm).polish else settings.generations)
         with _timed(timings, "search"):
             starts = np.array([p.values for p in warm], dtype=np.int64).reshape(-1, len(family.decisions))
             result = search(family, engine, settings, archive=archive, progress=reporter.advance, warm=starts)
