@@ -67,3 +67,15 @@ def foreign() -> Path:
             pytest.fail(f"{FOREIGN} is missing, and CI runs the foreign-model corpus; provide ../shared")
         pytest.skip(f"{FOREIGN} is absent (the foreign-model corpus lives beside the project, in ../shared)")
     return FOREIGN
+
+
+@pytest.fixture(scope="module")
+def small_robot():
+    """A 5x5 robot map (intervals up to 4, horizon 45) and its quotient evaluator, one per
+    module: the searches' tests run on it."""
+    from parley_core.evaluate.quotient import QuotientEvaluator
+    from parley_core.testing import family as make_family
+
+    family = make_family("robot_grid", ["size=5", "seed=1", "max_interval=4", "horizon=45"])
+    with QuotientEvaluator(family, workers=1) as evaluator:
+        yield family, evaluator

@@ -5,7 +5,6 @@ polish (no quotient, constraints, a family it has exhausted)."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 from test_improve import two_stages
 
 from parley_core import metrics
@@ -17,13 +16,6 @@ from parley_core.search.polish import contributions, dominated, shortfall
 from parley_core.testing import family as make_family
 
 MAX2 = [Direction.MAX, Direction.MAX]
-
-
-@pytest.fixture(scope="module")
-def robot():
-    family = make_family("robot_grid", ["size=5", "seed=1", "max_interval=4", "horizon=45"])
-    with QuotientEvaluator(family, workers=1) as evaluator:
-        yield family, evaluator
 
 
 class NoQuotient:
@@ -61,8 +53,8 @@ def test_dominated_and_shortfall_measure_against_the_staircase():
     np.testing.assert_allclose(shortfall(front, points[[2, 4]]), [0.0, 0.5 / 3])
 
 
-def test_a_polished_search_spends_the_rest_of_its_budget_on_neighbours_of_the_front(robot):
-    family, evaluator = robot
+def test_a_polished_search_spends_the_rest_of_its_budget_on_neighbours_of_the_front(small_robot):
+    family, evaluator = small_robot
     settings = SearchSettings(algorithm="polished", population=20, generations=None, max_evaluations=200, seed=4)
     result = search(family, evaluator, settings)
     assert result.evaluations == 200 and result.stopped_by is Stop.EVALUATIONS
@@ -76,8 +68,8 @@ def test_a_polished_search_spends_the_rest_of_its_budget_on_neighbours_of_the_fr
     assert earlier.shape == (60, len(family.decisions))
 
 
-def test_polishing_finds_a_better_front_than_the_guided_search_with_the_same_budget(robot):
-    family, evaluator = robot
+def test_polishing_finds_a_better_front_than_the_guided_search_with_the_same_budget(small_robot):
+    family, evaluator = small_robot
     directions = [o.direction for o in family.objectives]
     fronts = {}
     for algorithm in ("guided", "polished"):
@@ -90,16 +82,16 @@ def test_polishing_finds_a_better_front_than_the_guided_search_with_the_same_bud
     assert volume["polished"] > volume["guided"]
 
 
-def test_without_a_quotient_nothing_is_polished_and_the_first_stage_gets_the_whole_budget(robot):
-    family, evaluator = robot
+def test_without_a_quotient_nothing_is_polished_and_the_first_stage_gets_the_whole_budget(small_robot):
+    family, evaluator = small_robot
     settings = SearchSettings(algorithm="polished", population=10, generations=None, max_evaluations=60, seed=2)
     result = search(family, NoQuotient(evaluator), settings)
     assert result.polished is not None and result.polished.skipped == "the evaluator has no quotient"
     assert result.evaluations == 60 and result.stopped_by is Stop.EVALUATIONS
 
 
-def test_a_search_with_constraints_is_not_polished(robot):
-    family, evaluator = robot
+def test_a_search_with_constraints_is_not_polished(small_robot):
+    family, evaluator = small_robot
     constraint = Constraint.parse("success>=0.5")
     settings = SearchSettings(
         algorithm="polished", population=10, generations=None, max_evaluations=60, seed=2, constraints=(constraint,)
@@ -119,8 +111,8 @@ def test_polishing_stops_when_the_fronts_neighbours_are_all_evaluated():
     assert result.polished is not None and result.polished.expanded > 0
 
 
-def test_polishing_keeps_to_the_searchs_time_limit(robot):
-    family, evaluator = robot
+def test_polishing_keeps_to_the_searchs_time_limit(small_robot):
+    family, evaluator = small_robot
     result = search(family, evaluator, SearchSettings(algorithm="polished", generations=None, time_limit=1.0, seed=3))
     assert result.stopped_by is Stop.TIME and result.polished is not None and result.polished.evaluations > 0
     assert result.seconds < 2.0

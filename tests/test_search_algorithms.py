@@ -28,13 +28,6 @@ def web_ids():
         yield family, evaluator
 
 
-@pytest.fixture(scope="module")
-def robot():
-    family = make_family("robot_grid", ["size=5", "seed=1", "max_interval=4", "horizon=45"])
-    with QuotientEvaluator(family, workers=1) as evaluator:
-        yield family, evaluator
-
-
 class Rounded:
     """The quotient's values rounded to 1e-7, as the fixture was recorded: NSGA-II's ties
     then no longer hang on the last bits, which differ between machines (tests/data/README.md)."""
@@ -82,18 +75,18 @@ def test_every_configuration_is_deterministic_by_seed(web_ids, algorithm):
 
 @pytest.mark.parametrize("algorithm", sorted(ALGORITHMS))
 @pytest.mark.parametrize("budget", [1, 37])
-def test_every_configuration_meets_an_evaluation_budget_exactly(robot, algorithm, budget):
-    family, evaluator = robot
+def test_every_configuration_meets_an_evaluation_budget_exactly(small_robot, algorithm, budget):
+    family, evaluator = small_robot
     settings = SearchSettings(algorithm=algorithm, population=10, generations=None, max_evaluations=budget, seed=2)
     result = search(family, evaluator, settings)
     assert result.stopped_by is Stop.EVALUATIONS
     assert result.evaluations == len({row.tobytes() for row in result.policies}) == budget
 
 
-def test_a_decision_no_reachable_state_consults_changes_no_value(robot):
+def test_a_decision_no_reachable_state_consults_changes_no_value(small_robot):
     """The quotient's consulted decisions: changing any of the others gives the same DTMC,
     so the same values (bit for bit on the quotient, and Storm's values agree)."""
-    family, evaluator = robot
+    family, evaluator = small_robot
     rng = np.random.default_rng(4)
     lows, highs = np.array(family.lows), np.array(family.highs)
     policies = family.random(rng, 12)
@@ -110,10 +103,10 @@ def test_a_decision_no_reachable_state_consults_changes_no_value(robot):
         np.testing.assert_allclose(storm.evaluate(changed[:4]), values[:4], rtol=1e-9)
 
 
-def test_most_consulted_decisions_change_a_value(robot):
+def test_most_consulted_decisions_change_a_value(small_robot):
     """The mask is not everything: of a policy's consulted decisions, most change a value
     when set to another (a consulted decision can still be one no value depends on)."""
-    family, evaluator = robot
+    family, evaluator = small_robot
     lows, highs = np.array(family.lows), np.array(family.highs)
     policy = family.random(np.random.default_rng(9), 1)
     values, consulted = evaluator.evaluate_consulted(policy)
@@ -126,8 +119,8 @@ def test_most_consulted_decisions_change_a_value(robot):
     assert moved >= consulted[0].sum() // 2
 
 
-def test_ordinal_children_stay_in_range_and_are_new_dtmcs(robot):
-    family, evaluator = robot
+def test_ordinal_children_stay_in_range_and_are_new_dtmcs(small_robot):
+    family, evaluator = small_robot
     archive = CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
     settings = SearchSettings(algorithm="ordinal", population=10, generations=1, seed=3)
     search(family, evaluator, settings, archive=archive)
@@ -149,8 +142,8 @@ def test_ordinal_children_stay_in_range_and_are_new_dtmcs(robot):
             assert not any((child[m] == p[m]).all() for p, m in zip((first, second), mask))
 
 
-def test_local_search_children_are_new_one_step_neighbours_of_the_front(robot):
-    family, evaluator = robot
+def test_local_search_children_are_new_one_step_neighbours_of_the_front(small_robot):
+    family, evaluator = small_robot
     archive = CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
     search(
         family, evaluator, SearchSettings(algorithm="archive", population=20, generations=3, seed=2), archive=archive
