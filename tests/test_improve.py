@@ -15,7 +15,7 @@ from parley_core import metrics
 from parley_core.evaluate.cache import CachingEvaluator
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.model import Baseline, DecisionKind, Direction, Objective, Service
-from parley_core.quotient.improve import PolicyImprover
+from parley_core.quotient.improve import PolicyImprover, improver_for
 from parley_core.search import SearchSettings, Stop, search
 from parley_core.search.guide import guided_start, weightings
 from parley_core.testing import family as make_family
@@ -128,7 +128,7 @@ def test_no_improvement_where_the_objectives_do_not_combine():
         improver = PolicyImprover(family, evaluator.quotient)
         assert not improver.available and "weighted sum" in improver.unavailable
         archive = CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
-        walked = guided_start(family, archive, evaluator.quotient, budget=50)
+        walked = guided_start(family, archive, improver_for(family, evaluator.quotient), budget=50)
         assert walked.skipped == improver.unavailable and not len(walked.policies)
         result = search(family, evaluator, SearchSettings(algorithm="guided", population=8, generations=2))
     assert result.walked is not None and result.walked.skipped
@@ -142,7 +142,7 @@ def test_the_walks_find_policies_the_baselines_do_not_dominate_within_the_budget
         baselines = np.array([p.values for p in family.baseline_policies()])
         base = evaluator.evaluate(baselines)
         archive = CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
-        walked = guided_start(family, archive, evaluator.quotient, budget=40)
+        walked = guided_start(family, archive, improver_for(family, evaluator.quotient), budget=40)
         assert 0 < len(walked.policies) <= 10  # a quarter of the budget
         assert len(archive) <= len(baselines) + 10
         found = archive.values[archive.lookup(walked.policies)]
@@ -189,7 +189,7 @@ def test_the_walks_take_no_step_past_the_searchs_time_limit():
     family = make_family("robot_grid", ["size=5", "seed=1", "horizon=45"])
     with QuotientEvaluator(family, workers=1) as evaluator:
         archive = CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
-        walked = guided_start(family, archive, evaluator.quotient, budget=None, seconds=0.0)
+        walked = guided_start(family, archive, improver_for(family, evaluator.quotient), budget=None, seconds=0.0)
         assert not len(walked.policies) and not walked.skipped
         assert len(archive) == len(family.baseline_policies())  # the baselines only
         result = search(family, evaluator, SearchSettings(algorithm="guided", generations=None, time_limit=0.5))

@@ -9,10 +9,12 @@ from test_improve import two_stages
 
 from parley_core import metrics
 from parley_core.constraints import Constraint
+from parley_core.evaluate.cache import CachingEvaluator
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.model import Direction
+from parley_core.quotient.improve import improver_for
 from parley_core.search import SearchSettings, Stop, search
-from parley_core.search.polish import contributions, dominated, shortfall
+from parley_core.search.polish import contributions, dominated, polish, shortfall
 from parley_core.testing import family as make_family
 
 MAX2 = [Direction.MAX, Direction.MAX]
@@ -61,11 +63,39 @@ def test_a_polished_search_spends_the_rest_of_its_budget_on_neighbours_of_the_fr
     polished = result.polished
     assert polished is not None and not polished.skipped and polished.expanded > 0
     assert polished.evaluations == 200 - 60  # the first stage gets 30 %
-    earlier = result.policies[:60]
     for i in range(60, 200):  # every polished policy is one decision away from a policy evaluated before it
         changed = (result.policies[:i] != result.policies[i]).sum(axis=1)
         assert changed.min() == 1, i
-    assert earlier.shape == (60, len(family.decisions))
+
+
+def test_polishing_evaluates_first_the_neighbour_that_adds_the_most_hypervolume():
+    """On the two-stage model a score is the exact change of value (each decision is consulted
+    at most once on a path), so the first neighbour polishing evaluates must be the one whose
+    true values add the most hypervolume to the front of the baselines."""
+    family = make_family(two_stages(), prune=True)
+    with QuotientEvaluator(family, workers=1) as evaluator:
+        archive = CachingEvaluator(evaluator, len(family.decisions), len(family.objectives))
+        archive.evaluate(np.array([p.values for p in family.baseline_policies()], dtype=np.int64))
+        improver = improver_for(family, evaluator.quotient)
+        signs = improver.signs
+        values = archive.values * signs
+        front = values[metrics.nondominated(archive.values, [o.direction for o in family.objectives])]
+        reference = values.min(axis=0) - 1e-9 * np.maximum(1.0, np.abs(values.min(axis=0)))
+        domains = [list(d.service.values) for d in family.decisions]
+        neighbours = {
+            tuple(parent[:d]) + (v,) + tuple(parent[d + 1 :])
+            for parent in archive.policies
+            for d, domain in enumerate(domains)
+            for v in domain
+        } - set(map(tuple, archive.policies.tolist()))
+        neighbours = np.array(sorted(neighbours), dtype=np.int64)
+        gains = contributions(front, evaluator.evaluate(neighbours) * signs, reference)
+        assert gains.max() > 0  # some neighbour improves the front
+        before = len(archive)
+        polish(family, archive, improver, before + 1, seed=0, batch=1, expand=len(front))
+        first = archive.policies[before]
+    best = neighbours[np.isclose(gains, gains.max(), rtol=1e-9, atol=1e-12)]
+    assert any(np.array_equal(first, b) for b in best)
 
 
 def test_polishing_finds_a_better_front_than_the_guided_search_with_the_same_budget(small_robot):

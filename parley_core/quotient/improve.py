@@ -152,3 +152,12 @@ class PolicyImprover:
         best = score.argmax(axis=1)
         better = score[rows, best] > current + 1e-12 * np.maximum(1.0, np.abs(current))
         return np.where(better, best, indices)
+
+
+def improver_for(family: Family, quotient: Quotient | None) -> PolicyImprover | str:
+    """The family's :class:`PolicyImprover`, or why there is none (no quotient, objectives that
+    do not combine): a search builds it once for its walks and its polishing."""
+    if quotient is None:
+        return "the evaluator has no quotient"
+    improver = PolicyImprover(family, quotient)
+    return improver if improver.available else improver.unavailable

@@ -31,12 +31,16 @@ from __future__ import annotations
 
 import math
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 from attrs import frozen
 
 from parley_core.evaluate.cache import CachingEvaluator
 from parley_core.model import Family
+
+if TYPE_CHECKING:
+    from parley_core.quotient.improve import PolicyImprover
 
 DIRECTIONS = 12
 STEPS = 3
@@ -78,26 +82,22 @@ def weightings(values: np.ndarray, count: int) -> np.ndarray:
 def guided_start(
     family: Family,
     archive: CachingEvaluator,
-    quotient,
+    improver: PolicyImprover | str,
     budget: int | None,
     directions: int = DIRECTIONS,
     steps: int = STEPS,
     seconds: float | None = None,
 ) -> Walked:
     """Walk from the baselines by policy improvement (module docstring); the policies
-    evaluated on the way are in ``archive``. ``budget``: the search's evaluation budget (None:
-    unlimited), of which at most :data:`SHARE` is spent here; ``seconds``: the search's time
-    limit (None: none), after which no walk takes another step (then the walks depend on the
-    machine's speed, as a time-limited search does anyway)."""
-    from parley_core.quotient.improve import PolicyImprover
-
+    evaluated on the way are in ``archive``. ``improver``: the family's
+    (:func:`~parley_core.quotient.improve.improver_for`), or why there is none; ``budget``:
+    the search's evaluation budget (None: unlimited), of which at most :data:`SHARE` is spent
+    here; ``seconds``: the search's time limit (None: none), after which no walk takes another
+    step (then the walks depend on the machine's speed, as a time-limited search does anyway)."""
     start = time.perf_counter()
     empty = np.zeros((0, len(family.decisions)), dtype=np.int64)
-    if quotient is None:
-        return Walked(policies=empty, seconds=0.0, skipped="the evaluator has no quotient")
-    improver = PolicyImprover(family, quotient)
-    if not improver.available:
-        return Walked(policies=empty, seconds=time.perf_counter() - start, skipped=improver.unavailable)
+    if isinstance(improver, str):
+        return Walked(policies=empty, seconds=0.0, skipped=improver)
     domains = [np.asarray(d.service.values, dtype=np.int64) for d in family.decisions]
     positions = [{int(v): i for i, v in enumerate(domain)} for domain in domains]
 

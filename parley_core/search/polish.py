@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 from attrs import frozen
@@ -38,6 +39,9 @@ from attrs import frozen
 from parley_core.evaluate.cache import CachingEvaluator
 from parley_core.metrics import nondominated
 from parley_core.model import Family
+
+if TYPE_CHECKING:
+    from parley_core.quotient.improve import PolicyImprover
 
 BATCH = 20
 """Policies evaluated a round."""
@@ -107,46 +111,34 @@ def contributions(front: np.ndarray, points: np.ndarray, reference: np.ndarray) 
     return np.where((first <= last) & (x > reference[0]) & (y > reference[1]), whole + part, 0.0)
 
 
-def unavailable(family: Family, quotient, constrained: bool = False) -> str:
-    """Why :func:`polish` cannot run on this family and evaluator ("": it can), so that a
-    search that would polish gives the whole budget to its first stage instead."""
-    found = _improver(family, quotient, constrained)
-    return found if isinstance(found, str) else ""
-
-
-def _improver(family: Family, quotient, constrained: bool):
-    from parley_core.quotient.improve import PolicyImprover
-
+def unavailable(family: Family, improver: PolicyImprover | str, constrained: bool = False) -> str:
+    """Why :func:`polish` cannot run ("": it can): ``improver`` is the family's
+    (:func:`~parley_core.quotient.improve.improver_for`) or why there is none. A search that
+    cannot polish gives the whole budget to its first stage."""
     if len(family.objectives) != 2:
         return "polishing ranks two objectives only"
     if constrained:
         return "polishing does not rank by constraints"
-    if quotient is None:
-        return "the evaluator has no quotient"
-    improver = PolicyImprover(family, quotient)
-    return improver if improver.available else improver.unavailable
+    return improver if isinstance(improver, str) else ""
 
 
 def polish(
     family: Family,
     archive: CachingEvaluator,
-    quotient,
+    improver: PolicyImprover,
     budget: int,
     seed: int,
     *,
     batch: int = BATCH,
     expand: int = EXPAND,
     seconds: float | None = None,
-    constrained: bool = False,
     progress: Callable[[int], None] | None = None,
 ) -> Polished:
     """Spend the archive's evaluations up to ``budget`` on the neighbours of its front with the
-    largest predicted hypervolume gain (module docstring). ``seconds``: stop after this long
-    (None: no limit); ``progress`` is called after every round."""
+    largest predicted hypervolume gain (module docstring; :func:`unavailable` says where it
+    cannot run). ``seconds``: stop after this long (None: no limit); ``progress`` is called
+    after every round."""
     start = time.perf_counter()
-    improver = _improver(family, quotient, constrained)
-    if isinstance(improver, str):
-        return Polished(evaluations=0, expanded=0, seconds=time.perf_counter() - start, skipped=improver)
     if not len(archive):
         return Polished(evaluations=0, expanded=0, seconds=0.0, skipped="nothing evaluated to polish")
     rng = np.random.default_rng(seed)

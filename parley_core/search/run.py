@@ -74,27 +74,29 @@ def search(
     chosen = configuration(settings.algorithm)
     total = _budget(settings)
     limit = settings.time_limit
+    began = time.perf_counter()
+    from parley_core.quotient.improve import improver_for  # the compiled kernels load only when a search uses them
+
+    # one improver serves the walks and the polishing (building it reads the whole relaxation)
+    improver = improver_for(family, getattr(evaluator, "quotient", None)) if chosen.guided or chosen.polish else ""
     polished = None
     if chosen.polish:
-        reason = unavailable(family, getattr(evaluator, "quotient", None), constrained=bool(settings.constraints))
+        reason = unavailable(family, improver, constrained=bool(settings.constraints))
         if reason:
             polished = Polished(evaluations=0, expanded=0, seconds=0.0, skipped=reason)
-    if chosen.polish and polished is None:  # the pymoo search gets its share, polishing the rest
+    polishing = chosen.polish if polished is None else 0.0
+    if polishing:  # the pymoo search gets its share, polishing the rest
         if total is not None:
-            settings = attrs.evolve(
-                settings, generations=None, max_evaluations=max(1, round((1 - chosen.polish) * total))
-            )
+            settings = attrs.evolve(settings, generations=None, max_evaluations=max(1, round((1 - polishing) * total)))
         if limit is not None:
-            settings = attrs.evolve(settings, time_limit=(1 - chosen.polish) * limit)
-    began = time.perf_counter()
+            settings = attrs.evolve(settings, time_limit=(1 - polishing) * limit)
     walked = None
     if chosen.guided:  # the walks' policies are in the archive (whose front a mating may draw on)
-        quotient = getattr(evaluator, "quotient", None)
-        walked = guided_start(family, archive, quotient, settings.max_evaluations, seconds=settings.time_limit)
+        walked = guided_start(family, archive, improver, settings.max_evaluations, seconds=settings.time_limit)
         if chosen.guided == "population" and len(walked.policies):
             warm = walked.policies if warm is None or not len(warm) else np.vstack([warm, walked.policies])
-        if settings.time_limit is not None:  # the walks' time counts against the limit
-            settings = attrs.evolve(settings, time_limit=max(1e-3, settings.time_limit - walked.seconds))
+    if settings.time_limit is not None:  # the improver's and the walks' time count against the limit
+        settings = attrs.evolve(settings, time_limit=max(1e-3, settings.time_limit - (time.perf_counter() - began)))
     problem = PolicyProblem(family, archive, constraints=settings.constraints, budget=settings.max_evaluations)
     algorithm = chosen.build(settings.population, initial_population(family, settings, blend=chosen.blend, warm=warm))
     criteria = termination(settings, archive)
@@ -107,18 +109,11 @@ def search(
             generation += 1
             if progress:
                 progress(1)
-        if chosen.polish and polished is None:
+        if polishing:
+            assert not isinstance(improver, str)  # unavailable() said so
             left = None if limit is None else max(0.0, limit - (time.perf_counter() - began))
-            polished = polish(
-                family,
-                archive,
-                getattr(evaluator, "quotient", None),
-                total if total is not None else sys.maxsize,
-                settings.seed,
-                seconds=left,
-                constrained=bool(settings.constraints),
-                progress=progress,
-            )
+            budget = total if total is not None else sys.maxsize
+            polished = polish(family, archive, improver, budget, settings.seed, seconds=left, progress=progress)
     except KeyboardInterrupt:
         stopped_by = Stop.INTERRUPTED
     if stopped_by is None and polished is not None and not polished.skipped:
@@ -140,9 +135,8 @@ def search(
 def _budget(settings: SearchSettings) -> int | None:
     """The evaluations a search may spend: the budget, or what the generations would
     evaluate (None: only a time limit)."""
-    budgets = [b for b in (settings.max_evaluations,) if b is not None]
-    if settings.generations is not None:
-        budgets.append(settings.population * settings.generations)
+    generations = None if settings.generations is None else settings.population * settings.generations
+    budgets = [b for b in (settings.max_evaluations, generations) if b is not None]
     return min(budgets) if budgets else None
 
 
