@@ -92,6 +92,32 @@ def test_the_backward_pass_gives_the_policys_own_values(name, family):
         np.testing.assert_allclose(own * improver.signs, value, rtol=1e-9, atol=2e-6)
 
 
+@pytest.mark.parametrize("name, family", FAMILIES, ids=[name for name, _ in FAMILIES])
+def test_scores_on_threads_are_those_computed_one_at_a_time(name, family):
+    with QuotientEvaluator(family, workers=1) as evaluator:
+        alone = PolicyImprover(family, evaluator.quotient)
+        threaded = PolicyImprover(family, evaluator.quotient, threads=2)
+    policies = _indices(family, family.random(np.random.default_rng(5), 5))
+    together = threaded.gradients_of(list(policies))
+    assert len(together) == len(policies)
+    for indices, (score, own) in zip(policies, together):
+        expected_score, expected_own = alone.gradients(indices)
+        np.testing.assert_array_equal(score, expected_score)
+        np.testing.assert_array_equal(own, expected_own)
+
+
+def test_a_search_polishes_the_same_policies_whatever_the_evaluators_workers():
+    family = make_family("robot_grid", ["size=4", "seed=2", "max_interval=4", "horizon=40"])
+    settings = SearchSettings(algorithm="polished", population=20, generations=None, max_evaluations=200, seed=3)
+    archives = []
+    for workers in (1, 2):
+        with QuotientEvaluator(family, workers=workers) as evaluator:
+            result = search(family, evaluator, settings)
+        assert result.polished is not None and result.polished.evaluations > 0
+        archives.append((result.policies.tolist(), result.values.tolist()))
+    assert archives[0] == archives[1]
+
+
 def test_a_score_is_the_exact_change_where_a_decision_is_consulted_once():
     family = make_family(two_stages(), prune=True)  # o=2 consults nothing
     assert [d.valuation for d in family.decisions] == [(0,), (1,)]

@@ -8,7 +8,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _step_rewards(rewards, rows, steps, coefficients, t, action, out):
     """Each channel's weighted reward of ``action`` at step ``t`` into ``out``."""
     for c in range(coefficients.shape[0]):
@@ -19,7 +19,7 @@ def _step_rewards(rewards, rows, steps, coefficients, t, action, out):
         out[c] = value
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _leaves(t, s, horizon, left, right, until_steps):
     """Whether probability mass not yet at the reachability target stops counting for it at
     state ``s`` and step ``t`` (it reached the target, left ``left``, or ran out of steps),
@@ -59,7 +59,7 @@ def representatives(state_actions, action_entries, targets, probabilities, rewar
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def deviations(initial, horizon, chosen, state_actions, action_entries, targets, state_decisions, same):
     """Per step ``t`` the states where the policy, deviating at most once at a state that
     consults a decision, can be at step ``t`` (CSR: pointers, flat list), with a flag for
@@ -111,131 +111,99 @@ def deviations(initial, horizon, chosen, state_actions, action_entries, targets,
     return pointers, flat[:total].copy(), policy[:total].copy()
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def chosen_rewards(rewards, rows, steps, coefficients, t, chosen, out):
     """Each channel's weighted reward of every state's chosen action at step ``t`` into ``out``."""
     for s in range(chosen.shape[0]):
         _step_rewards(rewards, rows, steps, coefficients, t, chosen[s], out[s])
 
 
-@njit(cache=True)
-def back_step(t, horizon, listed, chosen, action_entries, targets, probabilities, reward, has_until, left, right,
-              until_steps, gain, terminal, a_next, b_next, a_now, b_now):  # fmt: skip
-    """One step of backward induction, per channel (column), for the policy whose action at
-    state ``s`` is ``chosen[s]`` (earning ``reward[s]`` now): ``b`` the value once the
-    reachability objective is settled (or when there is none), ``a`` the value while it is
-    not (reaching it is worth ``gain``, and past the horizon of an unbounded one ``terminal[s]``),
-    at the ``listed`` states only."""
-    channels = reward.shape[1]
-    for s in listed:
-        action = chosen[s]
-        first, last = action_entries[action], action_entries[action + 1]
-        for c in range(channels):
-            vb = reward[s, c]
-            if t < horizon:
-                for e in range(first, last):
-                    vb += probabilities[e] * b_next[targets[e], c]
-            b_now[s, c] = vb
-            if not has_until or (until_steps >= 0 and t > until_steps):
-                a_now[s, c] = vb
-            elif right[s]:
-                a_now[s, c] = gain[c] + vb
-            elif not left[s] or (until_steps >= 0 and t == until_steps):
-                a_now[s, c] = vb
-            elif t == horizon and until_steps < 0:
-                a_now[s, c] = terminal[s, c] + vb
-            else:
-                va = reward[s, c]
-                if t < horizon:
-                    for e in range(first, last):
-                        va += probabilities[e] * a_next[targets[e], c]
-                a_now[s, c] = va
-
-
-@njit(cache=True)
-def forward_step(t, horizon, listed, chosen, state_actions, action_entries, targets, probabilities, rewards, rows, steps,
-                 coefficients, has_until, left, right, until_steps, a_next, b_next, state_decisions, decisions,
-                 sizes, ma, mb, na, nb, score, same, stamp, known):  # fmt: skip
-    """Add to ``score[c, d, k]`` the value (channel ``c``) of moving, at the states with mass
-    at step ``t`` that consult ``d``, to the action that gives ``d`` the value ``k`` and
-    keeps the policy's other values, weighted by the mass (``ma``: mass still counting for
-    the reachability objective, ``mb``: the rest); then move the mass one step along the
-    policy's actions into ``na``, ``nb`` (zeroed by the caller). An action's value is
-    computed once per state and mode (``known[same[action]]``, valid where ``stamp`` says so)."""
-    channels = coefficients.shape[0]
-    q = np.empty(channels)
-    visit = stamp[0]
-    for s in listed:
-        for mode in range(2):
-            mass = ma[s] if mode == 0 else mb[s]
-            if mass == 0.0:
-                continue
-            visit += 1
-            pending = mode == 0 and has_until and not _leaves(t, s, horizon, left, right, until_steps)
-            base = state_actions[s]
-            local = chosen[s] - base
-            radix = 1
-            rest = local
-            for i in range(state_decisions[s], state_decisions[s + 1]):
-                d = decisions[i]
-                digit = rest % sizes[d]
-                rest //= sizes[d]
-                for value in range(sizes[d]):
-                    action = same[base + local + (value - digit) * radix]
-                    if stamp[action + 1] != visit:
-                        _step_rewards(rewards, rows, steps, coefficients, t, action, q)
-                        if t < horizon:
-                            for e in range(action_entries[action], action_entries[action + 1]):
-                                p = probabilities[e]
-                                for c in range(channels):
-                                    q[c] += p * (a_next[targets[e], c] if pending else b_next[targets[e], c])
-                        known[action] = q
-                        stamp[action + 1] = visit
-                    for c in range(channels):
-                        score[c, d, value] += mass * known[action, c]
-                radix *= sizes[d]
-            if t < horizon:
-                action = chosen[s]
-                for e in range(action_entries[action], action_entries[action + 1]):
-                    if pending:
-                        na[targets[e]] += mass * probabilities[e]
-                    else:
-                        nb[targets[e]] += mass * probabilities[e]
-    stamp[0] = visit
-
-
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def backward(pointers, listed, horizon, chosen, action_entries, targets, probabilities, rewards_by_window, window,
              has_until, left, right, until_steps, gain, terminal, values, next_a, next_b, now_a, now_b):  # fmt: skip
-    """:func:`back_step` from the horizon down to step 0 at the states :func:`deviations`
-    lists, step ``t``'s values kept only there (``values[i]``: the ``a`` and ``b`` values of
-    the ``i``-th listed entry); the dense ``next``/``now`` arrays carry one step to the next
-    (one call: a numba call per step costs more than its work)."""
+    """Backward induction from the horizon down to step 0 at the states :func:`deviations`
+    lists, per channel (column), for the policy whose action at state ``s`` is ``chosen[s]``:
+    ``b`` the value once the reachability objective is settled (or when there is none), ``a``
+    the value while it is not (reaching it is worth ``gain``, and past the horizon of an
+    unbounded one ``terminal[s]``). Step ``t``'s values are kept only at its listed entries
+    (``values[i]``: the ``a`` and ``b`` values of the ``i``-th); the dense ``next``/``now``
+    arrays carry one step to the next. One call for all steps (a numba call per step costs
+    more than its work), and one pass over an action's entries for both values."""
     channels = next_a.shape[1]
     next_a[:] = 0.0
     next_b[:] = 0.0
+    vb = np.empty(channels)
+    va = np.empty(channels)
     for t in range(horizon, -1, -1):
-        here = listed[pointers[t] : pointers[t + 1]]
-        back_step(t, horizon, here, chosen, action_entries, targets, probabilities, rewards_by_window[window[t]],
-                  has_until, left, right, until_steps, gain, terminal, next_a, next_b, now_a, now_b)  # fmt: skip
+        reward = rewards_by_window[window[t]]
+        settled = not has_until or (until_steps >= 0 and t > until_steps)
         for i in range(pointers[t], pointers[t + 1]):
             s = listed[i]
+            action = chosen[s]
+            first, last = action_entries[action], action_entries[action + 1]
+            # which value ``a`` takes here: 0 the same as b, 1 gain + b, 2 terminal + b, 3 its own sum
+            if settled:
+                kind = 0
+            elif right[s]:
+                kind = 1
+            elif not left[s] or (until_steps >= 0 and t == until_steps):
+                kind = 0
+            elif t == horizon and until_steps < 0:
+                kind = 2
+            else:
+                kind = 3
             for c in range(channels):
-                values[i, 0, c] = now_a[s, c]
-                values[i, 1, c] = now_b[s, c]
+                vb[c] = reward[s, c]
+                va[c] = reward[s, c]
+            if t < horizon:
+                if kind == 3:
+                    for e in range(first, last):
+                        p = probabilities[e]
+                        target = targets[e]
+                        for c in range(channels):
+                            vb[c] += p * next_b[target, c]
+                            va[c] += p * next_a[target, c]
+                else:
+                    for e in range(first, last):
+                        p = probabilities[e]
+                        target = targets[e]
+                        for c in range(channels):
+                            vb[c] += p * next_b[target, c]
+            for c in range(channels):
+                b = vb[c]
+                if kind == 0:
+                    a = b
+                elif kind == 1:
+                    a = gain[c] + b
+                elif kind == 2:
+                    a = terminal[s, c] + b
+                else:
+                    a = va[c]
+                now_a[s, c] = a
+                now_b[s, c] = b
+                values[i, 0, c] = a
+                values[i, 1, c] = b
         next_a, now_a = now_a, next_a
         next_b, now_b = now_b, next_b
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def forward(pointers, listed, on_policy, horizon, chosen, state_actions, action_entries, targets, probabilities,
             rewards, rows, steps, coefficients, has_until, left, right, until_steps, state_decisions, decisions,
             sizes, masses, score, same, stamp, known, values, following_a, following_b):  # fmt: skip
-    """:func:`forward_step` for every step, the values of step ``t + 1`` spread from
-    ``values`` into the dense ``following`` arrays first (the successors the step reads are
-    all listed at ``t + 1``), the occupancy in ``masses[t % 2]`` (moved into
-    ``masses[1 - t % 2]``, and zeroed behind it)."""
+    """The policy's occupancy forward from the initial state, step by step, with the scores:
+    at step ``t``, add to ``score[c, d, k]`` the value (channel ``c``) of moving, at the
+    states with mass that consult ``d``, to the action that gives ``d`` the value ``k`` and
+    keeps the policy's other values, weighted by the mass (``masses[t % 2][0]``: mass still
+    counting for the reachability objective, ``[1]``: the rest); then move the mass one step
+    along the policy's actions into ``masses[1 - t % 2]``. The values of step ``t + 1`` are
+    spread from ``values`` into the dense ``following`` arrays first (the successors the
+    step reads are all listed at ``t + 1``). An action's value is computed once per state
+    and mode (``known[same[action]]``, valid where ``stamp`` says so)."""
     channels = following_a.shape[1]
+    q = np.empty(channels)
+    local_score = np.zeros((score.shape[1], score.shape[2], channels))  # contiguous per value
+    visit = stamp[0]
     for t in range(horizon + 1):
         if t < horizon:
             for i in range(pointers[t + 1], pointers[t + 2]):
@@ -243,21 +211,101 @@ def forward(pointers, listed, on_policy, horizon, chosen, state_actions, action_
                 for c in range(channels):
                     following_a[s, c] = values[i, 0, c]
                     following_b[s, c] = values[i, 1, c]
-        first, last = pointers[t], pointers[t + 1]
-        count = 0
-        for i in range(first, last):
-            count += on_policy[i]
-        here = np.empty(count, dtype=np.int64)
-        j = 0
-        for i in range(first, last):
-            if on_policy[i]:
-                here[j] = listed[i]
-                j += 1
-        mass, moved = masses[t % 2], masses[1 - t % 2]
-        forward_step(t, horizon, here, chosen, state_actions, action_entries, targets, probabilities, rewards, rows,
-                     steps, coefficients, has_until, left, right, until_steps, following_a, following_b,
-                     state_decisions, decisions, sizes, mass[0], mass[1], moved[0], moved[1], score, same, stamp,
-                     known)  # fmt: skip
-        for s in here:
-            mass[0, s] = 0.0
-            mass[1, s] = 0.0
+        mass_now, mass_next = masses[t % 2], masses[1 - t % 2]
+        for i in range(pointers[t], pointers[t + 1]):
+            if not on_policy[i]:
+                continue
+            s = listed[i]
+            for mode in range(2):
+                mass = mass_now[mode, s]
+                if mass == 0.0:
+                    continue
+                visit += 1
+                pending = mode == 0 and has_until and not _leaves(t, s, horizon, left, right, until_steps)
+                following = following_a if pending else following_b
+                base = state_actions[s]
+                local = chosen[s] - base
+                radix = 1
+                rest = local
+                for j in range(state_decisions[s], state_decisions[s + 1]):
+                    d = decisions[j]
+                    digit = rest % sizes[d]
+                    rest //= sizes[d]
+                    for value in range(sizes[d]):
+                        action = same[base + local + (value - digit) * radix]
+                        if stamp[action + 1] != visit:
+                            _step_rewards(rewards, rows, steps, coefficients, t, action, q)
+                            if t < horizon:
+                                for e in range(action_entries[action], action_entries[action + 1]):
+                                    p = probabilities[e]
+                                    target = targets[e]
+                                    for c in range(channels):
+                                        q[c] += p * following[target, c]
+                            for c in range(channels):
+                                known[action, c] = q[c]
+                            stamp[action + 1] = visit
+                        for c in range(channels):
+                            local_score[d, value, c] += mass * known[action, c]
+                    radix *= sizes[d]
+                if t < horizon:
+                    action = chosen[s]
+                    moved = mass_next[0] if pending else mass_next[1]
+                    for e in range(action_entries[action], action_entries[action + 1]):
+                        moved[targets[e]] += mass * probabilities[e]
+            mass_now[0, s] = 0.0
+            mass_now[1, s] = 0.0
+    stamp[0] = visit
+    for c in range(channels):
+        for d in range(score.shape[1]):
+            for value in range(score.shape[2]):
+                score[c, d, value] += local_score[d, value, c]
+
+
+@njit(cache=True, nogil=True)
+def policy_reach(chosen, action_entries, targets, probabilities, left, right, pred_ptr, pred_state, pred_action,
+                 tolerance, max_sweeps):  # fmt: skip
+    """Per state the probability of ``left U right`` under the policy whose action at ``s`` is
+    ``chosen[s]``, iterated from above (1 where the policy can reach ``right`` through
+    ``left``, 0 elsewhere) by Gauss-Seidel sweeps in alternating order until a sweep changes
+    no state by more than ``tolerance``: the arithmetic of
+    :func:`~parley_core.quotient.subfamily.reach_probability` with one allowed action a
+    state, without scanning the others."""
+    states = chosen.shape[0]
+    mark = np.zeros(states, dtype=np.bool_)
+    stack = np.empty(states, dtype=np.int64)
+    top = 0
+    for s in range(states):
+        if right[s]:
+            mark[s] = True
+            stack[top] = s
+            top += 1
+    while top > 0:
+        top -= 1
+        t = stack[top]
+        for i in range(pred_ptr[t], pred_ptr[t + 1]):
+            s = pred_state[i]
+            if mark[s] or not left[s] or pred_action[i] != chosen[s]:
+                continue
+            mark[s] = True
+            stack[top] = s
+            top += 1
+    x = np.zeros(states)
+    for s in range(states):
+        if mark[s]:
+            x[s] = 1.0
+    for sweep in range(max_sweeps):
+        change = 0.0
+        for k in range(states):
+            s = k if sweep % 2 == 0 else states - 1 - k
+            if right[s] or not mark[s]:
+                continue
+            action = chosen[s]
+            v = 0.0
+            for e in range(action_entries[action], action_entries[action + 1]):
+                v += probabilities[e] * x[targets[e]]
+            best = min(v, x[s])  # rounding must not lift an iterate from above
+            change = max(change, abs(best - x[s]))
+            x[s] = best
+        if change <= tolerance:
+            break
+    return x

@@ -32,13 +32,16 @@ entries instead of 101 x 21,073), each two floats per objective.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from parley_core.model import Family
 from parley_core.quotient import subfamily as k
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
-from parley_core.quotient.gradient import backward, chosen_rewards, deviations, forward, representatives
+from parley_core.quotient.gradient import backward, chosen_rewards, deviations, forward, policy_reach, representatives
 
 REACH_TOLERANCE = 1e-6
 REACH_SWEEPS = 200
@@ -53,8 +56,11 @@ class PolicyImprover:
     combine into a weighted sum on the relaxation (the same condition as the Pareto outer
     bound's: step-bounded rewards and at most one reachability objective)."""
 
-    def __init__(self, family: Family, quotient: Quotient, relaxed: RelaxedObjectives | None = None) -> None:
+    def __init__(
+        self, family: Family, quotient: Quotient, relaxed: RelaxedObjectives | None = None, threads: int = 1
+    ) -> None:
         self.family = family
+        self.threads = max(1, int(threads))
         self.bounds = b = relaxed if relaxed is not None else RelaxedObjectives(family, quotient)
         self.relaxation = r = b.relaxation
         self.signs = b.signs
@@ -65,7 +71,6 @@ class PolicyImprover:
         self.left, self.right = np.ones(n, dtype=bool), np.zeros(n, dtype=bool)
         if self.until >= 0:
             self.left, self.right = b.left[self.until], b.right[self.until]
-        self.live = np.ones(n, dtype=bool)
         self.sizes = np.asarray(r.domain_sizes, dtype=np.int64)
         self.same = representatives(r.state_actions, r.action_entries, r.targets, r.probabilities, r.rewards)
 
@@ -100,11 +105,9 @@ class PolicyImprover:
         gain = np.ascontiguousarray(unit[:, self.until]) if has_until else np.zeros(channels)
         terminal = np.zeros((r.states, channels))
         if has_until and self.until_steps < 0:
-            allowed = np.zeros(r.actions, dtype=bool)
-            allowed[chosen] = True
-            reach = k.reach_probability(
-                r.state_actions, r.action_entries, r.targets, r.probabilities, allowed, self.live,
-                self.left, self.right, True, *b.pred, REACH_TOLERANCE, REACH_SWEEPS,
+            reach = policy_reach(
+                chosen, r.action_entries, r.targets, r.probabilities, self.left, self.right, *b.pred,
+                REACH_TOLERANCE, REACH_SWEEPS,
             )  # fmt: skip
             terminal = np.ascontiguousarray(reach[:, None] * gain[None, :])
         horizon, n = self.horizon, r.states
@@ -138,6 +141,16 @@ class PolicyImprover:
             score[:, d, size:] = -np.inf
         return score, values
 
+    def gradients_of(self, policies: Sequence[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
+        """:meth:`gradients` of several policies (position indices, as there), in order; on
+        ``threads`` threads where there are several (the compiled loops release the GIL, and
+        a policy's scores do not depend on the others', so the results are the same as one
+        at a time)."""
+        if self.threads == 1 or len(policies) < 2:
+            return [self.gradients(p) for p in policies]
+        with ThreadPoolExecutor(min(self.threads, len(policies))) as pool:
+            return list(pool.map(self.gradients, policies))
+
     @staticmethod
     def improve(indices: np.ndarray, gradients: np.ndarray, weights: np.ndarray) -> np.ndarray:
         """The policy with every decision at its best value under ``weights`` by the scores of
@@ -154,10 +167,11 @@ class PolicyImprover:
         return np.where(better, best, indices)
 
 
-def improver_for(family: Family, quotient: Quotient | None) -> PolicyImprover | str:
+def improver_for(family: Family, quotient: Quotient | None, threads: int = 1) -> PolicyImprover | str:
     """The family's :class:`PolicyImprover`, or why there is none (no quotient, objectives that
-    do not combine): a search builds it once for its walks and its polishing."""
+    do not combine): a search builds it once for its walks and its polishing. ``threads``:
+    how many policies' scores it computes at once (:meth:`PolicyImprover.gradients_of`)."""
     if quotient is None:
         return "the evaluator has no quotient"
-    improver = PolicyImprover(family, quotient)
+    improver = PolicyImprover(family, quotient, threads=threads)
     return improver if improver.available else improver.unavailable

@@ -124,14 +124,14 @@ def guided_start(
     gradients: dict[bytes, np.ndarray] = {}
     walked: list[np.ndarray] = []
     for _ in range(steps):
+        if seconds is not None and time.perf_counter() - start > seconds:
+            break
+        wanted = {current.tobytes(): current for _, current, _ in walks if current.tobytes() not in gradients}
+        for key, (scores, _) in zip(wanted, improver.gradients_of(list(wanted.values()))):
+            gradients[key] = scores
         moves = []
         for weights, current, level in walks:
-            if seconds is not None and time.perf_counter() - start > seconds:
-                break
-            key = current.tobytes()
-            if key not in gradients:
-                gradients[key] = improver.gradients(current)[0]
-            moved = improver.improve(current, gradients[key], weights)
+            moved = improver.improve(current, gradients[current.tobytes()], weights)
             if not np.array_equal(moved, current):
                 moves.append((weights, moved, level))
         if cap is not None:

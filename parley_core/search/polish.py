@@ -177,11 +177,10 @@ def polish(
         priority[order[[0, -1]]] = np.inf
         shuffled = rng.permutation(len(fresh))
         picks = shuffled[np.argsort(-priority[np.asarray(fresh, dtype=np.int64)][shuffled], kind="stable")]
-        for i in picks[:expand] if fresh else []:
-            parent = policies[fresh[i]]
+        chosen_parents = [policies[fresh[i]] for i in (picks[:expand] if fresh else [])]
+        at_of = [np.array([where[int(v)] for where, v in zip(positions, p)], dtype=np.int64) for p in chosen_parents]
+        for parent, at, (scores, own) in zip(chosen_parents, at_of, improver.gradients_of(at_of)):
             expanded.add(parent.tobytes())
-            at = np.array([where[int(v)] for where, v in zip(positions, parent)], dtype=np.int64)
-            scores, own = improver.gradients(at)
             delta = scores - scores[:, np.arange(len(at)), at][:, :, None]  # [objective, decision, value]
             valid = np.isfinite(delta).all(axis=0)
             valid[np.arange(len(at)), at] = False

@@ -78,7 +78,12 @@ def search(
     from parley_core.quotient.improve import improver_for  # the compiled kernels load only when a search uses them
 
     # one improver serves the walks and the polishing (building it reads the whole relaxation)
-    improver = improver_for(family, getattr(evaluator, "quotient", None)) if chosen.guided or chosen.polish else ""
+    # its scores on as many threads as the evaluator has workers: they wait while the walks and
+    # the polishing compute scores (a campaign's one-worker runs stay on one core each)
+    threads = int(getattr(evaluator, "workers", 1) or 1)
+    improver = (
+        improver_for(family, getattr(evaluator, "quotient", None), threads) if chosen.guided or chosen.polish else ""
+    )
     polished = None
     if chosen.polish:
         reason = unavailable(family, improver, constrained=bool(settings.constraints))
