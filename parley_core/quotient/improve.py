@@ -61,6 +61,7 @@ class PolicyImprover:
     ) -> None:
         self.family = family
         self.threads = max(1, int(threads))
+        self._pool: ThreadPoolExecutor | None = None
         self.bounds = b = relaxed if relaxed is not None else RelaxedObjectives(family, quotient)
         self.relaxation = r = b.relaxation
         self.signs = b.signs
@@ -145,11 +146,18 @@ class PolicyImprover:
         """:meth:`gradients` of several policies (position indices, as there), in order; on
         ``threads`` threads where there are several (the compiled loops release the GIL, and
         a policy's scores do not depend on the others', so the results are the same as one
-        at a time)."""
+        at a time). The threads stay for the next call until :meth:`close`."""
         if self.threads == 1 or len(policies) < 2:
             return [self.gradients(p) for p in policies]
-        with ThreadPoolExecutor(min(self.threads, len(policies))) as pool:
-            return list(pool.map(self.gradients, policies))
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix="parley-scores")
+        return list(self._pool.map(self.gradients, policies))
+
+    def close(self) -> None:
+        """End the threads of :meth:`gradients_of` (a later call starts them again)."""
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
 
     @staticmethod
     def improve(indices: np.ndarray, gradients: np.ndarray, weights: np.ndarray) -> np.ndarray:

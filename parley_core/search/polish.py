@@ -157,6 +157,7 @@ def polish(
     pool_value = np.zeros(0, dtype=np.int64)
     pool_predicted = np.zeros((0, 2))
     used = np.zeros(0, dtype=bool)
+    below = np.zeros(0, dtype=bool)  # predicted below the front: for good, as the front only grows
     before = len(archive)
     while len(archive) < budget:
         if seconds is not None and time.perf_counter() - start > seconds:
@@ -179,6 +180,7 @@ def polish(
         picks = shuffled[np.argsort(-priority[np.asarray(fresh, dtype=np.int64)][shuffled], kind="stable")]
         chosen_parents = [policies[fresh[i]] for i in (picks[:expand] if fresh else [])]
         at_of = [np.array([where[int(v)] for where, v in zip(positions, p)], dtype=np.int64) for p in chosen_parents]
+        added: list[tuple[np.ndarray, ...]] = []
         for parent, at, (scores, own) in zip(chosen_parents, at_of, improver.gradients_of(at_of)):
             expanded.add(parent.tobytes())
             delta = scores - scores[:, np.arange(len(at)), at][:, :, None]  # [objective, decision, value]
@@ -186,22 +188,51 @@ def polish(
             valid[np.arange(len(at)), at] = False
             decision, position = np.nonzero(valid)
             parents.append(parent)
-            pool_parent = np.concatenate([pool_parent, np.full(len(decision), len(parents) - 1)])
-            pool_decision = np.concatenate([pool_decision, decision])
-            pool_value = np.concatenate([pool_value, table[decision, position]])
-            pool_predicted = np.vstack([pool_predicted, (own[:, None] + delta[:, decision, position]).T])
-            used = np.concatenate([used, np.zeros(len(decision), dtype=bool)])
+            added.append(
+                (
+                    np.full(len(decision), len(parents) - 1),
+                    decision,
+                    table[decision, position],
+                    (own[:, None] + delta[:, decision, position]).T,
+                )
+            )
+        if added:  # one copy of the pool a round
+            pool_parent = np.concatenate([pool_parent, *(a[0] for a in added)])
+            pool_decision = np.concatenate([pool_decision, *(a[1] for a in added)])
+            pool_value = np.concatenate([pool_value, *(a[2] for a in added)])
+            pool_predicted = np.vstack([pool_predicted, *(a[3] for a in added)])
+            fresh_count = sum(len(a[0]) for a in added)
+            used = np.concatenate([used, np.zeros(fresh_count, dtype=bool)])
+            below = np.concatenate([below, np.zeros(fresh_count, dtype=bool)])
         open_ = np.flatnonzero(~used)
         if not len(open_):
             break
-        predicted = pool_predicted[open_]
-        below = dominated(front, predicted)
-        # the predicted gain first; where none is predicted, the nearest below the front
-        rank = np.where(below, -shortfall(front, predicted) - 1.0, 0.0)
-        rank[~below] = contributions(front, predicted[~below], reference)
+        # the predicted gain first; where none is predicted, the nearest below the front. A
+        # gain is at least 0 and a shortfall's rank at most -1, so the points above the front
+        # come first, each group in the pool's order; the points below are ranked only when
+        # those above do not fill the batch
+        unsettled = open_[~below[open_]]
+        below[unsettled] = dominated(front, pool_predicted[unsettled])
+        above = open_[~below[open_]]
+        gain = contributions(front, pool_predicted[above], reference)
+        order = above[np.argsort(-gain, kind="stable")]
         chosen: list[np.ndarray] = []
         keys: set[bytes] = set()
-        for j in open_[np.argsort(-rank, kind="stable")]:
+        ranked_below = False
+        cursor = 0
+        while len(chosen) < min(batch, budget - len(archive)):
+            if cursor == len(order):
+                if ranked_below:
+                    break
+                ranked_below = True
+                low = open_[below[open_] & ~used[open_]]
+                # ranked by shortfall + 1 (the order since polishing began: shortfalls below
+                # 1e-16 tie there, and are taken in the pool's order)
+                order = low[np.argsort(shortfall(front, pool_predicted[low]) + 1.0, kind="stable")]
+                cursor = 0
+                continue
+            j = order[cursor]
+            cursor += 1
             used[j] = True
             child = parents[pool_parent[j]].copy()
             child[pool_decision[j]] = pool_value[j]
@@ -210,8 +241,6 @@ def polish(
                 continue
             keys.add(key)
             chosen.append(child)
-            if len(chosen) >= min(batch, budget - len(archive)):
-                break
         if chosen:
             archive.evaluate(np.array(chosen, dtype=np.int64))
         if progress:

@@ -121,6 +121,9 @@ def search(
             polished = polish(family, archive, improver, budget, settings.seed, seconds=left, progress=progress)
     except KeyboardInterrupt:
         stopped_by = Stop.INTERRUPTED
+    finally:
+        if not isinstance(improver, str):
+            improver.close()  # its threads
     if stopped_by is None and polished is not None and not polished.skipped:
         stopped_by = _polish_stop(polished, archive, total, limit, time.perf_counter() - began)
     if stopped_by is None:

@@ -1,0 +1,100 @@
+"""What a policy's improvement scores cost (parley_core.quotient.improve), against what an
+evaluation costs: the walks of ``guided`` and the polishing of ``polished`` spend their time
+on scores.
+
+Per instance, on policies a search would score (random ones and the policies three steps of
+policy improvement lead to from them, in three weightings):
+
+- the quotient's evaluation of a policy (ms, one core): the reference of the same run;
+- one policy's scores (ms, one core) and how many evaluations they cost;
+- four policies' scores at once on one and on two threads (ms), as a polishing round asks
+  for them (``PolicyImprover.gradients_of``; ``parley run`` gives the improver as many
+  threads as the evaluator has workers).
+
+Usage: python benchmarks/improve.py [--seconds 2] [--skip-20]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from parley_core.evaluate.quotient import QuotientEvaluator
+from parley_core.quotient.improve import PolicyImprover
+from parley_core.testing import family as make_family
+
+INSTANCES = [
+    ("robot_grid map_10 (default)", "robot_grid", []),
+    ("robot_grid 20x20", "robot_grid", ["size=20", "seed=0"]),
+    ("turtlebot", "turtlebot", []),
+    ("web_ids", "web_ids", []),
+    ("tas", "tas", []),
+]
+
+
+def timed(call, seconds: float) -> float:
+    """Mean seconds of ``call()`` over at least ``seconds`` (and at least three calls)."""
+    call()
+    start, count = time.perf_counter(), 0
+    while count < 3 or time.perf_counter() - start < seconds:
+        call()
+        count += 1
+    return (time.perf_counter() - start) / count
+
+
+def scored_policies(improver: PolicyImprover, rng: np.random.Generator) -> list[np.ndarray]:
+    """Four random policies and the policies three improvement steps lead to from the first."""
+    policies = [rng.integers(0, improver.sizes) for _ in range(4)]
+    for weights in ([1.0, 0.0], [0.5, 0.5], [0.2, 0.8]):
+        current = policies[0]
+        for _ in range(3):
+            scores, _ = improver.gradients(current)
+            current = improver.improve(current, scores, np.resize(np.array(weights), len(improver.signs)))
+        policies.append(current)
+    return policies
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seconds", type=float, default=2.0, help="time each measurement for at least this long")
+    parser.add_argument("--skip-20", action="store_true")
+    args = parser.parse_args()
+    print(
+        "| instance | relaxation states | horizon | evaluation (ms) | scores (ms) | scores / evaluation "
+        "| 4 policies' scores, 1 thread (ms) | 2 threads (ms) | speed-up |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    for label, case, assignments in INSTANCES:
+        if args.skip_20 and "20x20" in label:
+            continue
+        print(measure(label, case, assignments, args.seconds), flush=True)
+
+
+def measure(label: str, case: str, assignments: list[str], seconds: float) -> str:
+    """One instance's row of the table."""
+    family = make_family(case, assignments)
+    with QuotientEvaluator(family, workers=1) as evaluator:
+        alone = PolicyImprover(family, evaluator.quotient)
+        threaded = PolicyImprover(family, evaluator.quotient, threads=2)
+        policies = scored_policies(alone, np.random.default_rng(0))
+        values = [[d.service.values[i] for d, i in zip(family.decisions, p)] for p in policies]
+        rows = np.array(values, dtype=np.int64)
+        evaluation = timed(lambda: evaluator.evaluate(rows), seconds) / len(rows)
+    one = timed(lambda: [alone.gradients(p) for p in policies], seconds) / len(policies)
+    four = policies[-4:]
+    serial = timed(lambda: alone.gradients_of(four), seconds)
+    parallel = timed(lambda: threaded.gradients_of(four), seconds)
+    for (a, b), (c, d) in zip(alone.gradients_of(four), threaded.gradients_of(four)):
+        if not (np.array_equal(a, c) and np.array_equal(b, d)):
+            raise SystemExit(f"{label}: scores on two threads differ from one thread's")
+    threaded.close()
+    return (
+        f"| {label} | {alone.relaxation.states:,} | {alone.horizon} | {1000 * evaluation:.2f} | {1000 * one:.2f} "
+        f"| {one / evaluation:.1f} | {1000 * serial:.1f} | {1000 * parallel:.1f} | {serial / parallel:.2f}x |"
+    )
+
+
+if __name__ == "__main__":
+    main()
