@@ -41,7 +41,7 @@ from parley_core.model import Family
 from parley_core.quotient import subfamily as k
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
-from parley_core.quotient.gradient import backward, chosen_rewards, deviations, forward, policy_reach, representatives
+from parley_core.quotient.gradient import backward, chosen_rewards, deviations, forward, representatives
 
 REACH_TOLERANCE = 1e-6
 REACH_SWEEPS = 200
@@ -72,6 +72,7 @@ class PolicyImprover:
         self.left, self.right = np.ones(n, dtype=bool), np.zeros(n, dtype=bool)
         if self.until >= 0:
             self.left, self.right = b.left[self.until], b.right[self.until]
+        self.live = np.ones(n, dtype=bool)
         self.sizes = np.asarray(r.domain_sizes, dtype=np.int64)
         self.same = representatives(r.state_actions, r.action_entries, r.targets, r.probabilities, r.rewards)
 
@@ -106,9 +107,11 @@ class PolicyImprover:
         gain = np.ascontiguousarray(unit[:, self.until]) if has_until else np.zeros(channels)
         terminal = np.zeros((r.states, channels))
         if has_until and self.until_steps < 0:
-            reach = policy_reach(
-                chosen, r.action_entries, r.targets, r.probabilities, self.left, self.right, *b.pred,
-                REACH_TOLERANCE, REACH_SWEEPS,
+            allowed = np.zeros(r.actions, dtype=bool)
+            allowed[chosen] = True
+            reach = k.reach_probability(
+                r.state_actions, r.action_entries, r.targets, r.probabilities, allowed, self.live,
+                self.left, self.right, True, *b.pred, REACH_TOLERANCE, REACH_SWEEPS,
             )  # fmt: skip
             terminal = np.ascontiguousarray(reach[:, None] * gain[None, :])
         horizon, n = self.horizon, r.states

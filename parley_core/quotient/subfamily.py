@@ -27,7 +27,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def allowed_actions(state_actions, state_decisions, decisions, domain_sizes, lo, hi):
     """Which actions of the relaxation the sub-family ``lo..hi`` keeps."""
     states = state_actions.shape[0] - 1
@@ -71,7 +71,7 @@ def reachable(initial, state_actions, action_entries, targets, allowed):
     return seen
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def can_reach(pred_ptr, pred_state, pred_action, allowed, live, left, right):
     """The ``live`` states from which some scheduler reaches ``right`` through ``left``."""
     states = pred_ptr.shape[0] - 1
@@ -96,7 +96,7 @@ def can_reach(pred_ptr, pred_state, pred_action, allowed, live, left, right):
     return mark
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, nogil=True)
 def reach_probability(state_actions, action_entries, targets, probabilities, allowed, live, left, right, maximise,
                       pred_ptr, pred_state, pred_action, tolerance, max_sweeps):  # fmt: skip
     """Per state a sound bound on the best probability of ``left U right``: from above when
