@@ -13,7 +13,9 @@ policy improvement lead to from them, in three weightings):
 
 Then the search of ``parley run robot_grid`` (map_10, seed 1, an evaluator with two workers
 as ``parley run`` has on this machine) by ``paper`` with 4,000 evaluations, the reference,
-and by ``polished`` with 1,000, 2,000 and 4,000: seconds and the ratio to the reference.
+and by ``polished`` with 1,000, 2,000 and 4,000: seconds and the ratio to the reference;
+and a polishing round's 20 evaluations (random policies of map_10) in the main process
+against split over the running workers (``quotient.SHARE_SMALL``).
 
 Usage: python benchmarks/improve.py [--seconds 2] [--skip-20] [--skip-searches | --only-searches]
 """
@@ -25,6 +27,7 @@ import time
 
 import numpy as np
 
+from parley_core.evaluate import quotient
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.quotient.improve import PolicyImprover
 from parley_core.search import SearchSettings, search
@@ -101,6 +104,20 @@ def searches() -> None:
                 f"| {name} | {result.evaluations} | {result.seconds:.1f} | {result.seconds / reference:.2f}x |",
                 flush=True,
             )
+        if not hasattr(quotient, "SHARE_SMALL"):
+            return  # a version before small batches went to the workers
+        rng = np.random.default_rng(1)
+        rounds = [family.random(rng, 20) for _ in range(40)]
+        print("\n| a round's 20 evaluations, map_10 | main process (ms) | over 2 workers (ms) |")
+        print("|---|---|---|")
+        shared = quotient.SHARE_SMALL
+        try:
+            quotient.SHARE_SMALL = 10**9  # never split
+            alone = timed(lambda: [evaluator.evaluate(r) for r in rounds], 2.0) / len(rounds)
+        finally:
+            quotient.SHARE_SMALL = shared
+        split = timed(lambda: [evaluator.evaluate(r) for r in rounds], 2.0) / len(rounds)
+        print(f"| random policies | {1000 * alone:.1f} | {1000 * split:.1f} |", flush=True)
 
 
 def measure(label: str, case: str, assignments: list[str], seconds: float) -> str:

@@ -119,7 +119,15 @@ def test_worker_processes_give_bit_identical_values():
     family = augment(ROBOT.build(ROBOT.options(["size=5", "seed=2"])))
     policies = np.random.default_rng(0).integers(1, 11, size=(70, len(family.decisions)))
     with QuotientEvaluator(family, workers=1) as one, QuotientEvaluator(family, workers=2) as two:
+        assert two.evaluate(policies[:20]).shape == (20, 2) and two._pool is None  # too few to start them
         assert np.array_equal(one.evaluate(policies), two.evaluate(policies))
+        # once the workers run, a polishing round's 20 go to them too (a chunk each), with the same values
+        pool, submitted = two._pool, []
+        assert pool is not None
+        submit = pool.submit
+        pool.submit = lambda *args, **kwargs: submitted.append(args) or submit(*args, **kwargs)  # type: ignore[method-assign]
+        assert np.array_equal(one.evaluate(policies[:20]), two.evaluate(policies[:20]))
+        assert len(submitted) == 2
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
