@@ -155,8 +155,8 @@ class QuotientEvaluator:
     With ``workers`` > 1, batches of :data:`START_WORKERS` policies or more are split over
     worker processes that receive the quotient once, when the pool starts; once it runs,
     batches from :data:`SHARE_SMALL` policies up too (a polishing round's 20), one chunk a
-    worker. ``quotient`` reuses one built
-    before; ``mdp``, a quotient MDP built with the family's objectives.
+    worker. ``quotient`` reuses one built before; ``mdp``, a quotient MDP built with the
+    family's objectives.
     """
 
     name = "quotient"
