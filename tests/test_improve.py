@@ -106,7 +106,17 @@ def test_scores_on_threads_are_those_computed_one_at_a_time(name, family):
         np.testing.assert_array_equal(own, expected_own)
 
 
-def test_a_search_polishes_the_same_policies_whatever_the_evaluators_workers():
+def test_a_search_polishes_the_same_policies_whatever_the_evaluators_workers(monkeypatch):
+    import parley_core.quotient.improve as improve
+
+    threads = []
+
+    def recording(family, quotient, threads_=1):
+        improver = improver_for(family, quotient, threads_)
+        threads.append(improver.threads)
+        return improver
+
+    monkeypatch.setattr(improve, "improver_for", recording)
     family = make_family("robot_grid", ["size=4", "seed=2", "max_interval=4", "horizon=40"])
     settings = SearchSettings(algorithm="polished", population=20, generations=None, max_evaluations=200, seed=3)
     archives = []
@@ -115,6 +125,7 @@ def test_a_search_polishes_the_same_policies_whatever_the_evaluators_workers():
             result = search(family, evaluator, settings)
         assert result.polished is not None and result.polished.evaluations > 0
         archives.append((result.policies.tolist(), result.values.tolist()))
+    assert threads == [1, 2]  # the scores ran on as many threads as the evaluator has workers
     assert archives[0] == archives[1]
 
 

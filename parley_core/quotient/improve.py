@@ -74,11 +74,26 @@ class PolicyImprover:
             self.left, self.right = b.left[self.until], b.right[self.until]
         self.live = np.ones(n, dtype=bool)
         self.sizes = np.asarray(r.domain_sizes, dtype=np.int64)
+        domains = [np.asarray(d.service.values, dtype=np.int64) for d in family.decisions]
+        self.table = np.full((len(domains), max((len(v) for v in domains), default=0)), -1, dtype=np.int64)
+        """Per decision and position in its domain, the value (-1 past the domain)."""
+        for d, domain in enumerate(domains):
+            self.table[d, : len(domain)] = domain
+        self._where = [{int(v): i for i, v in enumerate(domain)} for domain in domains]
         self.same = representatives(r.state_actions, r.action_entries, r.targets, r.probabilities, r.rewards)
 
     @property
     def available(self) -> bool:
         return not self.unavailable
+
+    def positions(self, policy: np.ndarray) -> np.ndarray:
+        """Per decision the position of the policy's value in the decision's domain (the
+        ``indices`` the other methods take)."""
+        return np.array([where[int(v)] for where, v in zip(self._where, policy)], dtype=np.int64)
+
+    def values(self, positions: np.ndarray) -> np.ndarray:
+        """The policy (its values) at these positions: the inverse of :meth:`positions`."""
+        return self.table[np.arange(len(positions)), np.asarray(positions, dtype=np.int64)]
 
     def chosen(self, indices: np.ndarray) -> np.ndarray:
         """The policy's action in every state of the relaxation (``indices``: per decision

@@ -98,15 +98,6 @@ def guided_start(
     empty = np.zeros((0, len(family.decisions)), dtype=np.int64)
     if isinstance(improver, str):
         return Walked(policies=empty, seconds=0.0, skipped=improver)
-    domains = [np.asarray(d.service.values, dtype=np.int64) for d in family.decisions]
-    positions = [{int(v): i for i, v in enumerate(domain)} for domain in domains]
-
-    def indices(policy: np.ndarray) -> np.ndarray:
-        return np.array([where[int(v)] for where, v in zip(positions, policy)], dtype=np.int64)
-
-    def policy(at: np.ndarray) -> np.ndarray:
-        return np.array([domain[i] for domain, i in zip(domains, at)], dtype=np.int64)
-
     baselines = np.array([p.values for p in family.baseline_policies()], dtype=np.int64)
     baselines = baselines.reshape(-1, len(family.decisions))
     signs = improver.signs
@@ -120,7 +111,7 @@ def guided_start(
         return Walked(policies=empty, seconds=time.perf_counter() - start, skipped="no baseline was evaluated")
     directions_ = weightings(start_values, directions)
     firsts = [int(np.argmax(start_values @ w)) for w in directions_]
-    walks = [(w, indices(baselines[i]), float(start_values[i] @ w)) for w, i in zip(directions_, firsts)]
+    walks = [(w, improver.positions(baselines[i]), float(start_values[i] @ w)) for w, i in zip(directions_, firsts)]
     gradients: dict[bytes, np.ndarray] = {}
     walked: list[np.ndarray] = []
     for _ in range(steps):
@@ -138,7 +129,7 @@ def guided_start(
             moves = moves[: max(0, cap - (len(archive) - before))]
         if not moves:
             break
-        candidates = np.array([policy(moved) for _, moved, _ in moves])
+        candidates = np.array([improver.values(moved) for _, moved, _ in moves])
         new = [c for c in candidates if c not in archive]
         values = archive.evaluate(candidates) * signs
         walked += new

@@ -30,7 +30,7 @@ Deterministic by seed.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -111,6 +111,30 @@ def contributions(front: np.ndarray, points: np.ndarray, reference: np.ndarray) 
     return np.where((first <= last) & (x > reference[0]) & (y > reference[1]), whole + part, 0.0)
 
 
+def _ranked(
+    front: np.ndarray,
+    reference: np.ndarray,
+    predicted: np.ndarray,
+    open_: np.ndarray,
+    below: np.ndarray,
+    used: np.ndarray,
+) -> Iterator[int]:
+    """The open pool entries in the order polishing tries them: the predicted hypervolume gain
+    first; where none is predicted, the nearest below the front. A gain is at least 0 and a
+    shortfall's rank at most -1, so the entries above the front come first, each group in the
+    pool's order. ``below`` is updated for the entries not yet known to be below (once below,
+    always below: the front only grows); those below are ranked only when the caller asks for
+    more than the entries above (lazily: ``used`` then says which the caller took)."""
+    unsettled = open_[~below[open_]]
+    below[unsettled] = dominated(front, predicted[unsettled])
+    above = open_[~below[open_]]
+    yield from above[np.argsort(-contributions(front, predicted[above], reference), kind="stable")].tolist()
+    low = open_[below[open_] & ~used[open_]]
+    # ranked by shortfall + 1 (the order since polishing began: shortfalls below 1e-16 tie
+    # there, and are taken in the pool's order)
+    yield from low[np.argsort(shortfall(front, predicted[low]) + 1.0, kind="stable")].tolist()
+
+
 def unavailable(family: Family, improver: PolicyImprover | str, constrained: bool = False) -> str:
     """Why :func:`polish` cannot run ("": it can): ``improver`` is the family's
     (:func:`~parley_core.quotient.improve.improver_for`) or why there is none. A search that
@@ -142,12 +166,6 @@ def polish(
     if not len(archive):
         return Polished(evaluations=0, expanded=0, seconds=0.0, skipped="nothing evaluated to polish")
     rng = np.random.default_rng(seed)
-    domains = [np.asarray(d.service.values, dtype=np.int64) for d in family.decisions]
-    positions = [{int(v): i for i, v in enumerate(domain)} for domain in domains]
-    sizes = np.array([len(domain) for domain in domains], dtype=np.int64)
-    table = np.full((len(domains), int(sizes.max())), -1, dtype=np.int64)  # [decision, position] -> value
-    for d, domain in enumerate(domains):
-        table[d, : len(domain)] = domain
     signs = improver.signs
     directions = [o.direction for o in family.objectives]
     expanded: set[bytes] = set()
@@ -179,7 +197,7 @@ def polish(
         shuffled = rng.permutation(len(fresh))
         picks = shuffled[np.argsort(-priority[np.asarray(fresh, dtype=np.int64)][shuffled], kind="stable")]
         chosen_parents = [policies[fresh[i]] for i in (picks[:expand] if fresh else [])]
-        at_of = [np.array([where[int(v)] for where, v in zip(positions, p)], dtype=np.int64) for p in chosen_parents]
+        at_of = [improver.positions(p) for p in chosen_parents]
         added: list[tuple[np.ndarray, ...]] = []
         for parent, at, (scores, own) in zip(chosen_parents, at_of, improver.gradients_of(at_of)):
             expanded.add(parent.tobytes())
@@ -192,7 +210,7 @@ def polish(
                 (
                     np.full(len(decision), len(parents) - 1),
                     decision,
-                    table[decision, position],
+                    improver.table[decision, position],
                     (own[:, None] + delta[:, decision, position]).T,
                 )
             )
@@ -207,32 +225,9 @@ def polish(
         open_ = np.flatnonzero(~used)
         if not len(open_):
             break
-        # the predicted gain first; where none is predicted, the nearest below the front. A
-        # gain is at least 0 and a shortfall's rank at most -1, so the points above the front
-        # come first, each group in the pool's order; the points below are ranked only when
-        # those above do not fill the batch
-        unsettled = open_[~below[open_]]
-        below[unsettled] = dominated(front, pool_predicted[unsettled])
-        above = open_[~below[open_]]
-        gain = contributions(front, pool_predicted[above], reference)
-        order = above[np.argsort(-gain, kind="stable")]
         chosen: list[np.ndarray] = []
         keys: set[bytes] = set()
-        ranked_below = False
-        cursor = 0
-        while len(chosen) < min(batch, budget - len(archive)):
-            if cursor == len(order):
-                if ranked_below:
-                    break
-                ranked_below = True
-                low = open_[below[open_] & ~used[open_]]
-                # ranked by shortfall + 1 (the order since polishing began: shortfalls below
-                # 1e-16 tie there, and are taken in the pool's order)
-                order = low[np.argsort(shortfall(front, pool_predicted[low]) + 1.0, kind="stable")]
-                cursor = 0
-                continue
-            j = order[cursor]
-            cursor += 1
+        for j in _ranked(front, reference, pool_predicted, open_, below, used):
             used[j] = True
             child = parents[pool_parent[j]].copy()
             child[pool_decision[j]] = pool_value[j]
@@ -241,6 +236,8 @@ def polish(
                 continue
             keys.add(key)
             chosen.append(child)
+            if len(chosen) >= min(batch, budget - len(archive)):
+                break
         if chosen:
             archive.evaluate(np.array(chosen, dtype=np.int64))
         if progress:
