@@ -10,7 +10,11 @@ Three tables, printed as Markdown:
    difference between their values (relative to the value's size, at least 1);
 2. a whole front: ``parley run robot_grid`` (the published map_10 when ../shared is there,
    else a generated 10x10 map) verified by each path on two workers, front and baselines;
-3. campaign runs as ``parley experiment run`` makes them (one worker, the paper's budget,
+3. Storm's floor for that front: the states Storm built for it (policy programs), and how
+   long Storm's explicit builder takes for as many states of the simplest program there is
+   (one counter variable, two successors a state, built in batches of the same size): no
+   program Storm builds state by state can verify the front faster on two workers;
+4. campaign runs as ``parley experiment run`` makes them (one worker, the paper's budget,
    verification on): search time against verification time per run, over ``--campaign``
    published maps (generated ones when ../shared is absent).
 
@@ -25,10 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
-from parley_core.evaluate.batch import BatchStormEvaluator
+from parley_core.evaluate.batch import BATCH_STATES, BatchStormEvaluator
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.pipeline import prepare, run
 from parley_core.plugins import load_registry
+from parley_core.prism import program as prism
 from parley_core.search import SearchSettings
 from parley_core.testing import family as make_family
 from parley_core.verify import VerifyPath, check_with_storm, differences
@@ -80,14 +85,57 @@ def whole_front(options: list[str]) -> dict:
         start = time.perf_counter()
         verification, _ = check_with_storm(family, rows, values, workers=2, path=path)
         timings[path] = (time.perf_counter() - start, verification.max_relative_difference)
+    states, one_core = front_states(family, rows)
     return {
         "instance": " ".join(options) or "defaults",
         "policies": len(rows),
+        "states": states,
+        "one_core_s": one_core,
+        "floor_us": storm_floor(states),
         "search_s": result.timings["search"],
         "reference_s": timings[VerifyPath.REFERENCE][0],
         "batch_s": timings[VerifyPath.BATCH][0],
         "difference": max(timings[VerifyPath.REFERENCE][1], timings[VerifyPath.BATCH][1]),
     }
+
+
+def front_states(family, rows: np.ndarray) -> tuple[int, float]:
+    """The DTMC states Storm builds for ``rows`` by policy programs (one worker, so that the
+    count is this process's), and the seconds it took on that one core."""
+    with BatchStormEvaluator(family, workers=1) as fast:
+        start = time.perf_counter()
+        fast.evaluate(rows)
+        return fast.states, time.perf_counter() - start
+
+
+def counter_program(states: int) -> str:
+    """The simplest DTMC of ``states`` states Storm's builder can be given: one counter, two
+    successors a state, one command enabled in each."""
+    last = states - 1
+    return (
+        "dtmc\nmodule counter\n"
+        f"  i : [0..{last}] init 0;\n"
+        f"  [] i < {last - 1} -> 0.3 : (i'=i+1) + 0.7 : (i'=i+2);\n"
+        f"  [] i = {last - 1} -> (i'=i+1);\n"
+        f"  [] i = {last} -> true;\n"
+        "endmodule\n"
+    )
+
+
+def storm_floor(states: int, repeats: int = 3) -> float:
+    """Microseconds a state that Storm's explicit builder needs for :func:`counter_program`
+    in batches of :data:`BATCH_STATES` states (the best of ``repeats`` builds)."""
+    import stormpy
+
+    size = min(states, BATCH_STATES)
+    program = prism.parse_program(counter_program(size), origin="the counter program")
+    options = stormpy.BuilderOptions([])
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.perf_counter()
+        model = stormpy.build_model[float](program, options=options)
+        best = min(best, time.perf_counter() - start)
+    return 1e6 * best / model.nr_states
 
 
 def campaign_runs(count: int) -> list[dict]:
@@ -159,6 +207,16 @@ def main() -> int:
         f"| {front['instance'].split('/')[-1]} | {front['policies']} | {front['search_s']:.1f} | {front['reference_s']:.1f} "
         f"| {front['batch_s']:.1f} | {front['reference_s'] / front['batch_s']:.1f}x | {front['difference']:.1e} |"
     )
+
+    print("\n## Storm's floor for that front\n", flush=True)
+    states, floor_us = front["states"], front["floor_us"]
+    actual_us = 1e6 * front["one_core_s"] / states
+    print(
+        "| DTMC states Storm builds | policy programs, one core (µs a state, build and check) "
+        "| the simplest program (µs a state, build only) | floor on two workers (s) | policy programs on two workers (s) |"
+    )  # noqa: E501
+    print("|---|---|---|---|---|")
+    print(f"| {states:,} | {actual_us:.2f} | {floor_us:.2f} | {states * floor_us / 2e6:.1f} | {front['batch_s']:.1f} |")
 
     if args.campaign:
         print(f"\n## Campaign runs (one worker, paper's budget, verified), {args.campaign} maps\n", flush=True)
