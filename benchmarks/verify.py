@@ -1,6 +1,6 @@
 """Storm's proof at the speed of the search: the two verification paths, measured in one run.
 
-Three tables, printed as Markdown:
+Four tables, printed as Markdown:
 
 1. per-policy time of each path on one core: the reference (the augmented program with the
    decisions defined, one Storm build per policy) and policy programs (the original model
@@ -12,8 +12,9 @@ Three tables, printed as Markdown:
    else a generated 10x10 map) verified by each path on two workers, front and baselines;
 3. Storm's floor for that front: the states Storm built for it (policy programs), and how
    long Storm's explicit builder takes for as many states of the simplest program there is
-   (one counter variable, two successors a state, built in batches of the same size): no
-   program Storm builds state by state can verify the front faster on two workers;
+   (one counter variable, two successors a state, built in batches of the same size): about
+   the least time in which any program Storm builds state by state verifies the front on
+   two workers;
 4. campaign runs as ``parley experiment run`` makes them (one worker, the paper's budget,
    verification on): search time against verification time per run, over ``--campaign``
    published maps (generated ones when ../shared is absent).
