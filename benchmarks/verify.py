@@ -101,8 +101,8 @@ def whole_front(options: list[str]) -> dict:
 
 
 def front_states(family, rows: np.ndarray) -> tuple[int, float]:
-    """The DTMC states Storm builds for ``rows`` by policy programs (one worker, so that the
-    count is this process's), and the seconds it took on that one core."""
+    """The DTMC states Storm builds for ``rows`` by policy programs, and the seconds the
+    whole path (writing, parsing, building and checking each batch) takes on one core."""
     with BatchStormEvaluator(family, workers=1) as fast:
         start = time.perf_counter()
         fast.evaluate(rows)
@@ -213,7 +213,7 @@ def main() -> int:
     states, floor_us = front["states"], front["floor_us"]
     actual_us = 1e6 * front["one_core_s"] / states
     print(
-        "| DTMC states Storm builds | policy programs, one core (µs a state, build and check) "
+        "| DTMC states Storm builds | policy programs, one core (µs a state: write, parse, build, check) "
         "| the simplest program (µs a state, build only) | floor on two workers (s) | policy programs on two workers (s) |"
     )  # noqa: E501
     print("|---|---|---|---|---|")
