@@ -24,7 +24,7 @@ from attrs import field, frozen
 
 from parley_core import metrics
 from parley_core.model import Direction, Family, Objective
-from parley_core.quotient.bounds import RelaxedObjectives
+from parley_core.quotient.bounds import RelaxedObjectives, staircase
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.compile import KernelKind, KernelObjective
 from parley_core.quotient.relaxation import storm_model
@@ -192,8 +192,9 @@ def ideal_point(
 
 
 def refined_bound(family: Family, result: ExactResult) -> Bound:
-    """The bound branch and bound leaves: its front and the ideal points of the sub-families
-    it did not resolve (all of which it proved to hold no better policy otherwise)."""
+    """The bound branch and bound leaves: its front and the regions (ideal points, for two
+    objectives cut by their half-spaces) of the sub-families it did not resolve (all of which
+    it proved to hold no better policy otherwise)."""
     directions = [o.direction for o in family.objectives]
     points = np.asarray(result.bound, dtype=float).reshape(-1, len(directions))
     if len(points):
@@ -204,7 +205,7 @@ def refined_bound(family: Family, result: ExactResult) -> Bound:
         method=(
             "branch and bound: the whole Pareto front, proven on the quotient's relaxation"
             if result.exact
-            else "branch and bound: the front and the ideal points of the sub-families left open"
+            else "branch and bound: the front and the regions of the sub-families left open"
         )
         + (f" (not covering {result.unknown} policies that have no value)" if result.unknown else ""),
         exact=result.exact,
@@ -230,14 +231,15 @@ def pareto_outer(
     family: Family, quotient: Quotient, ideal: Bound | None = None, bounds: RelaxedObjectives | None = None
 ) -> Bound:
     """An outer approximation of the relaxation's Pareto curve, for two objectives that
-    combine in a weighted sum (step-bounded rewards and at most one reachability objective):
-    the ideal box cut by the half-spaces of ``DIRECTIONS`` weighted sums, each a sound upper
-    bound by backward induction on the relaxation (:mod:`parley_core.quotient.bounds`),
-    covered by a staircase of points. Otherwise (or if nothing is cut) the ideal point."""
+    combine in a weighted sum (step-bounded rewards and at most one reachability objective, or
+    minimised expected rewards to one target): the ideal box cut by the half-spaces of
+    ``DIRECTIONS`` weighted sums, each a sound upper bound on the relaxation
+    (:mod:`parley_core.quotient.bounds`), covered by a staircase of points. Otherwise (or if
+    nothing is cut) the ideal point."""
     start = time.perf_counter()
     bounds = bounds or RelaxedObjectives(family, quotient)
     ideal = ideal or ideal_point(family, quotient, bounds)
-    if len(family.objectives) != 2 or not bounds.weighted_ok or not np.isfinite(ideal.points).all():
+    if len(family.objectives) != 2 or not bounds.combines or not np.isfinite(ideal.points).all():
         return ideal
     signs = bounds.signs
     view = bounds.restrict(np.zeros(len(bounds.sizes), dtype=np.int64), bounds.sizes - 1)
@@ -254,25 +256,21 @@ def pareto_outer(
     if not len(levels):
         return ideal
 
-    def height(x: np.ndarray) -> np.ndarray:
-        """The largest second objective the region allows at first objective x."""
-        cuts = (levels[None, :] - weights[None, :, 0] * x[:, None]) / weights[None, :, 1]
-        return np.minimum(top[1], cuts.min(axis=1))
-
-    # the region's top-left corner: where the cuts first go below the box
-    left = float(np.min((levels - weights[:, 1] * top[1]) / weights[:, 0]))
-    left = min(left, float(top[0]))
-    grid = np.linspace(left, float(top[0]), STEPS + 1)
-    heights = height(grid)
-    # point i covers x in [grid[i-1], grid[i]] (the height does not increase); the first covers x <= left
-    points = np.vstack([[grid[0], top[1]], np.column_stack([grid[1:], heights[:-1]])])
+    points = staircase(top, weights, levels, STEPS)
+    how = (
+        "backward induction"
+        if bounds.weighted_ok
+        else "expected rewards to the target"
+        if bounds.summed_ok
+        else "backward induction over the step bound, then expected rewards to the target"
+    )
     return Bound(
         objectives=family.objectives,
         points=points * signs,
         cuts=tuple((w, float(c)) for w, c in zip(weights, levels)),
         method=(
             "Pareto outer approximation: the relaxation's ideal box cut by "
-            f"{len(levels)} weighted sums (backward induction), covered by a staircase"
+            f"{len(levels)} weighted sums ({how}), covered by a staircase"
         ),
         seconds=ideal.seconds + time.perf_counter() - start,
     )

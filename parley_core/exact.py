@@ -3,22 +3,27 @@
 A node is a sub-family (per decision an interval of its domain). Its bound, on the
 quotient's relaxation (:mod:`parley_core.quotient.bounds`), is the ideal point of its
 schedulers and a few weighted sums (half-spaces): every policy of the node lies in that
-region. The archive of evaluated values is kept with its *local upper bounds* (Klamroth,
-Lacour and Vanderpooten 2015): the corners u whose open orthants ``{v > u}`` make up exactly
-the points no archived value weakly dominates. A node none of whose region reaches beyond a
-corner holds no policy with a new value, and is pruned. A node whose decisions leave at most
-``leaf`` policies (decisions no reached state consults collapse to one value) is evaluated
-policy by policy; with ``adaptive``, ``leaf`` grows to what costs as much to evaluate as a
-few bounds (both times measured as the search goes), because where fronts are dense
-(web_ids, tas) splitting rarely prunes. Evaluated nodes go to the evaluator as whole boxes
-where it can take them (:meth:`~parley_core.evaluate.quotient.QuotientEvaluator.box_fronts`:
-each box enumerated where it is solved and cut to its own front, so only a few rows a box
-travel between processes), and are solved there while the next nodes are bounded here: a
-node is pruned against the values found so far, which is sound whatever is still pending.
-Until the first leaf is evaluated the nodes are taken depth first, so that the adaptive
-leaf size is known before the family is cut finer than it needs. When no node is left, the archive's non-dominated values are the whole
-Pareto front (as a set of values); with a time limit the open nodes' ideal points join the
-front in the bound.
+region. The archive of evaluated values (:mod:`parley_core.archive`) is kept with its
+*local upper bounds*: the corners u whose open orthants ``{v > u}`` make up exactly the
+points no archived value weakly dominates. A node none of whose region reaches beyond a
+corner holds no policy with a new value, and is pruned. Where the bounds know their
+schedulers (expected rewards to a target), each is tried as a policy (per decision the value
+it takes in most states) and the node is split in the decision they disagree on most, as
+PAYNT's abstraction refinement does; otherwise in its widest decision. A node whose
+decisions leave at most ``leaf`` policies (decisions no reached state consults collapse to
+one value) is evaluated policy by policy; with ``adaptive``, ``leaf`` grows to what costs as
+much to evaluate as a few bounds (both times measured as the search goes), because where
+fronts are dense (web_ids, tas) splitting rarely prunes. Evaluated nodes go to the evaluator
+as whole boxes where it can take them
+(:meth:`~parley_core.evaluate.quotient.QuotientEvaluator.box_fronts`: each box enumerated
+where it is solved and cut to its own front, so only a few rows a box travel between
+processes), and are solved there while the next nodes are bounded here: a node is pruned
+against the values found so far, which is sound whatever is still pending. Until the first
+leaf is evaluated the nodes are taken depth first, so that the adaptive leaf size is known
+before the family is cut finer than it needs. When no node is left, the archive's
+non-dominated values are the whole Pareto front (as a set of values); with a time limit the
+open nodes' regions (for two objectives a staircase over each one's box and half-spaces)
+join the front in the bound.
 """
 
 from __future__ import annotations
@@ -33,9 +38,10 @@ from collections.abc import Callable
 import numpy as np
 from attrs import field, frozen
 
+from parley_core.archive import Archive, depth, robust_front
 from parley_core.boxes import FLOOR, Box, BoxValues, Pending, Ready, box_rows, local_front
 from parley_core.model import Family
-from parley_core.quotient.bounds import RelaxedObjectives
+from parley_core.quotient.bounds import RelaxedObjectives, staircase
 from parley_core.quotient.coloring import Quotient
 
 LEAF = 48
@@ -56,89 +62,35 @@ BOX_BATCH = 65536
 IN_FLIGHT = 2
 """Batches an evaluator may be solving while nodes are bounded: the workers always have the
 next batch when they finish one."""
-TOLERANCE = 1e-9
-"""The front is exact to this: every policy of the family is weakly dominated by a front
-value once each objective is given this much (of the value's size, at least 1), and
-:data:`NOISE` more for the ties at the level of float noise that :func:`robust_front` drops."""
-NOISE = 1e-12
-"""Two values closer than this (of their size, at least 1) in an objective are tied there."""
+OPEN_STEPS = 16
+"""Points of the staircase that covers a node left open (two objectives) in the bound."""
 
 
-class Archive:
-    """Values in sign space (maximised) with their local upper bounds."""
+def region_points(node: Node) -> np.ndarray:
+    """Points (sign space) whose orthants cover a bounded node's region: for two objectives
+    the staircase over its ideal box and half-spaces, else its ideal point."""
+    assert node.ideal is not None
+    ideal = node.ideal
+    cuts = [(w, c) for w, c in node.cuts if np.isfinite(c) and (np.asarray(w) > 0).all()]
+    if len(ideal) == 2 and cuts and (ideal > FLOOR).all() and np.isfinite(ideal).all():
+        weights = np.array([w for w, _ in cuts], dtype=float)
+        levels = np.array([c for _, c in cuts], dtype=float)
+        return staircase(ideal, weights, levels, OPEN_STEPS)
+    return np.where(ideal <= FLOOR, -np.inf, ideal)[None, :]
 
-    def __init__(self, n: int) -> None:
-        self.points = np.zeros((0, n))
-        self.corners = np.full((1, n), -np.inf)
 
-    def add(self, point: np.ndarray) -> bool:
-        """Add one value; False if the archive already weakly dominates it (or it is NaN)."""
-        if np.isnan(point).any():
+class Tried:
+    """The policies (rows of domain indices) already tried as a bound's scheduler."""
+
+    def __init__(self) -> None:
+        self.seen: set[bytes] = set()
+
+    def add(self, choice: np.ndarray) -> bool:
+        key = np.asarray(choice, dtype=np.int64).tobytes()
+        if key in self.seen:
             return False
-        point = np.maximum(point, FLOOR)  # an infinitely bad value is still a value
-        if len(self.points) and (self.points >= point).all(axis=1).any():
-            return False
-        self.points = np.vstack([self.points[~(self.points <= point).all(axis=1)], point])
-        hit = (self.corners < point).all(axis=1)
-        born = np.repeat(self.corners[hit], len(point), axis=0)
-        columns = np.tile(np.arange(len(point)), hit.sum())
-        born[np.arange(len(born)), columns] = point[columns]
-        kept = self.corners[~hit]
-        everyone = np.vstack([kept, born])
-        # a corner whose orthant lies inside another's is redundant
-        below = (everyone[None, :, :] <= born[:, None, :]).all(axis=2)
-        same = (everyone[None, :, :] == born[:, None, :]).all(axis=2)
-        first_same = np.argmax(same, axis=1) == np.arange(len(kept), len(everyone))
-        redundant = (below & ~same).any(axis=1) | ~first_same
-        self.corners = np.vstack([kept, born[~redundant]])
+        self.seen.add(key)
         return True
-
-    def open_corners(self, ideal: np.ndarray, cuts: list[tuple[np.ndarray, float]]) -> np.ndarray:
-        """The corners whose orthant meets the region (ideal box and half-spaces) by more than
-        the tolerance: a value better than the archive's by less than TOLERANCE (of its size,
-        at least 1) in every objective it improves counts as found."""
-        slack = TOLERANCE * np.maximum(1.0, np.abs(np.where(np.isfinite(ideal), ideal, 0.0)))
-        inside = (self.corners < ideal - slack).all(axis=1)
-        finite = np.maximum(self.corners, FLOOR)
-        for weights, level in cuts:
-            inside &= finite @ weights < level - weights @ slack
-        return self.corners[inside]
-
-
-def depth(ideal: np.ndarray, corners: np.ndarray, scale: np.ndarray) -> float:
-    """How far the ideal point reaches beyond the archive: the largest, over open corners, of
-    the smallest scaled distance to the ideal (the node's priority)."""
-    if not len(corners):
-        return 0.0
-    gaps = np.minimum((ideal[None, :] - np.maximum(corners, FLOOR)) / scale, 1e300)
-    return float(gaps.min(axis=1).max())
-
-
-def robust_front(points: np.ndarray) -> np.ndarray:
-    """Indices (sorted) of the points (sign space, maximised) that no kept point dominates
-    beyond :data:`NOISE`: a point goes when a kept one is no worse than it by more than that
-    (of its size, at least 1) in every objective and better by more in one.
-    Such ties at the level of float noise (a probability of 0.99999999999999 beside
-    0.99999999999998 with a much worse second objective) are not two front values. Every
-    point dropped is covered by a kept one to within NOISE; the points are
-    taken best first (by their objectives scaled to the points' spread), so that a dominating
-    point is kept before what it dominates."""
-    points = np.maximum(np.asarray(points, dtype=float), FLOOR)
-    if len(points) < 2:
-        return np.arange(len(points))
-    finite = np.where(np.isfinite(points), points, 0.0)
-    slack = NOISE * np.maximum(1.0, np.abs(finite))
-    spread = finite.max(axis=0) - finite.min(axis=0)
-    key = (finite / np.where(spread > 0, spread, 1.0)).sum(axis=1)
-    kept: list[int] = []
-    for i in np.argsort(-key, kind="stable"):
-        if kept:
-            best = points[kept]
-            beyond = (best >= points[i] - slack[i]).all(axis=1) & (best > points[i] + slack[i]).any(axis=1)
-            if beyond.any():
-                continue
-        kept.append(int(i))
-    return np.sort(np.array(kept, dtype=np.int64))
 
 
 @frozen
@@ -248,6 +200,7 @@ def branch_and_bound(
         return max(leaf, min(LARGEST_LEAF, int(LEAF_COST * per_bound / per_policy)))
 
     inflight: deque[Pending] = deque()
+    tried = Tried()
 
     def take(batch: BoxValues) -> None:
         nonlocal evaluated, unknown
@@ -329,7 +282,7 @@ def branch_and_bound(
             scale = np.where(np.isfinite(spread) & (spread > 0), spread, 1.0)
         cuts = list(node.cuts)
         corners = archive.open_corners(ideal, cuts)
-        for _ in range(CUTS if bounds.weighted_ok else 0):
+        for _ in range(CUTS if bounds.combines else 0):
             if not len(corners):
                 break
             gaps = ideal[None, :] - corners
@@ -346,14 +299,32 @@ def branch_and_bound(
             pruned += 1
             resolve(share)
             continue
-        # split the widest consulted decision in two (with ``whole``, the widest but one)
+        # where the bounds' schedulers are known, each is tried as a policy (by the value each
+        # decision takes in most states: where they agree, it is the policy that attains the
+        # bound) and the node is split in the decision they disagree on most, between the two
+        # values taken most, as PAYNT's abstraction refinement does; else in the widest
+        # consulted decision (with ``whole``, the widest but one)
+        votes = [bounds.votes(view, actions) for actions in view.schedulers]
+        for vote in votes:
+            choice = np.where(vote.sum(axis=1) > 0, vote.argmax(axis=1), lo)
+            if tried.add(choice):
+                queue(choice, choice.copy())
         spans = np.where(consulted, width, 0)
-        d = int(np.argmax(spans))
-        if whole:
-            spans[d] = 0
-            if spans.max() > 1:
-                d = int(np.argmax(spans))
-        middle = (lo[d] + hi[d]) // 2
+        split = None
+        if votes:
+            tally = np.sum(votes, axis=0)
+            disagreement = np.where(spans > 1, tally.sum(axis=1) - tally.max(axis=1), 0)
+            if disagreement.max() > 0:
+                split = d = int(np.argmax(disagreement))
+                first, second = np.argsort(-tally[d], kind="stable")[:2]
+                middle = int(min(max(min(first, second), lo[d]), hi[d] - 1))
+        if split is None:
+            d = int(np.argmax(spans))
+            if whole:
+                spans[d] = 0
+                if spans.max() > 1:
+                    d = int(np.argmax(spans))
+            middle = (lo[d] + hi[d]) // 2
         upper_lo, lower_hi = lo.copy(), hi.copy()
         upper_lo[d], lower_hi[d] = middle + 1, middle
         resolve(share - math.prod(int(w) for w in width))  # what collapsed decisions repeat
@@ -372,7 +343,7 @@ def branch_and_bound(
     rows, values = rows[alive.reshape(-1)], values[alive.reshape(-1)]
     kept = robust_front(values * signs)
     rows, values = rows[kept], values[kept]
-    open_points = [np.where(n.ideal <= FLOOR, -np.inf, n.ideal) * signs for _, _, n in stack if n.ideal is not None]
+    open_points = [region_points(n) * signs for _, _, n in stack if n.ideal is not None]
     if any(n.ideal is None for _, _, n in stack):
         everything = bounds.restrict(np.zeros(len(domains), dtype=np.int64), bounds.sizes - 1)
         open_points.append(bounds.ideal(everything) * signs)

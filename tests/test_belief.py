@@ -80,7 +80,10 @@ def test_the_pomdp_bound_is_tighter_where_the_observation_hides_the_state():
 
 
 def _cases():
-    yield from ((name, case) for name, case in _families() if name != "robot_grid 5x5")
+    # not "rewards to one target": Storm's belief discretization does not return on its
+    # R{"once"}=? [F broken] (minutes at 100 % of a core; the bound's own kernels take 10 ms)
+    left_out = ("robot_grid 5x5", "breaking, rewards to one target")
+    yield from ((name, case) for name, case in _families() if name not in left_out)
     yield "robot_grid 3x3", family("robot_grid", ["size=3", "seed=2", "max_interval=4"])
     yield "guess", _guess()
 

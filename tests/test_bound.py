@@ -26,6 +26,20 @@ from parley_core.usermodel import system_from_file
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 
+TO_BROKEN = {"cost": 'R{"cost"}=? [F broken]', "once": 'R{"once"}=? [F broken]'}
+MIXED = {"cost": 'R{"cost"}=? [F broken]', "soon": "P=? [F<=6 broken]"}
+DPM = ("X11 X21 X31 X41 X12 X22 X32 X42 X13 X23 X33 X43 X14 X24 X34 X44", "0..2")
+
+
+def dpm(foreign: Path, free: int = 16):
+    """PAYNT's dpm family (no observation: each decision a constant), the decisions after the
+    first ``free`` fixed to 1."""
+    names = DPM[0].split()
+    decisions = [f"{n}={DPM[1] if i < free else '1..1'}" for i, n in enumerate(names)]
+    folder = foreign / "paynt-dpm"
+    return family(system_from_file(folder / "dpm.prism", decisions, [], folder / "dpm.pctl"))
+
+
 def _flip(objectives, maximize):
     return [attrs.evolve(o, direction=Direction.MAX) if o.name in maximize else o for o in objectives]
 
@@ -43,6 +57,14 @@ def _families():
     yield (
         "synchronised",
         family(synchronised_system(("full", "P=? [F b=3]", "max"), ("load", 'R{"b"}=? [C<=6]', "min"))),
+    )
+    # minimised expected rewards to one target combine into one expected reward
+    yield "breaking, rewards to one target", family(breaking_system(TO_BROKEN))
+    # and with the probability to reach that target within a step bound, maximised
+    mixed = breaking_system(MIXED)
+    yield (
+        "breaking, reward and bounded reach",
+        family(attrs.evolve(mixed, objectives=_flip(mixed.objectives, {"soon"}))),
     )
     yield (
         "stuck",
@@ -142,3 +164,90 @@ def test_every_run_writes_its_bound_and_the_front_is_inside_it(tmp_path):
         .any(axis=0)
         .all()
     )
+
+
+def test_rewards_to_one_target_give_a_pareto_bound_on_a_model_we_did_not_write(foreign, monkeypatch):
+    # PAYNT's dpm: power and lost requests, both expected until "finished"; their weighted
+    # sums are one expected reward, bounded from below by policy iteration's value checked as
+    # a post-fixpoint, where iterating from 0 takes thousands of sweeps
+    from parley_core.quotient import bounds as module
+    from parley_core.quotient.bounds import RelaxedObjectives
+
+    case = dpm(foreign)
+    quotient = build_quotient(case)
+    relaxed = RelaxedObjectives(case, quotient)
+    assert relaxed.summed_ok and not relaxed.weighted_ok
+    outer = pareto_outer(case, quotient, bounds=relaxed)
+    assert "weighted sums (expected rewards to the target)" in outer.method
+    policies = np.vstack(
+        [np.array([p.values for p in case.baseline_policies()]).reshape(-1, len(case.decisions)),
+         case.random(np.random.default_rng(5), 30)]
+    ).astype(np.int64)  # fmt: skip
+    storm = values(case, policies)
+    assert outer.dominates(storm).all()
+    # and much tighter than the ideal point (power 135.88, lostH 0.0095): with power below 137
+    # no policy loses fewer than 5 requests
+    ideal = ideal_point(case, quotient, relaxed).points[0]
+    assert ideal[0] < 136 and ideal[1] < 0.01
+    assert outer.points[outer.points[:, 0] < 137.0][:, 1].min() > 5.0
+    # each weighted level is the least expected weighted reward to 1e-7: policy iteration's
+    # guess against iterating from 0 to convergence, and below every policy's weighted sum
+    view = relaxed.restrict(np.zeros(len(case.decisions), dtype=np.int64), relaxed.sizes - 1)
+    weights = np.array([[1.0, 10.0], [1.0, 0.1]])
+    fast = relaxed.weighted(view, weights)
+    assert len(view.schedulers) == 2
+    monkeypatch.setattr(module, "ITERATIONS", 0)
+    slow = relaxed.weighted(relaxed.restrict(np.zeros(len(case.decisions), dtype=np.int64), relaxed.sizes - 1), weights)
+    np.testing.assert_allclose(fast, slow, rtol=1e-7)
+    assert ((storm @ weights.T) * -1 <= fast + 1e-9).all()
+
+
+def test_a_guess_is_lowered_to_a_post_fixpoint_or_refused():
+    from parley_core.quotient.subfamily import post_fixpoint
+
+    # state 0 pays 1 and reaches state 1 (the target) with probability 1/2, else stays: value 2
+    state_actions, action_entries = np.array([0, 1, 1]), np.array([0, 2])
+    targets, probabilities = np.array([1, 0]), np.array([0.5, 0.5])
+    allowed, free, reward = np.array([True]), np.array([True, False]), np.array([1.0])
+    for guess in (1.5, 2.0, 3.0):
+        y = np.array([guess, 0.0])
+        assert post_fixpoint(state_actions, action_entries, targets, probabilities, allowed, free, reward, y, 200)
+        assert y[0] <= 2.0 and y[0] >= min(guess, 2.0) - 1e-9
+    # a second action that stays for free: never reaching the target, its value is infinite,
+    # but the margin for rounding cannot hold on a cycle that pays nothing, and it is refused
+    state_actions, action_entries = np.array([0, 2, 2]), np.array([0, 2, 3])
+    targets, probabilities = np.array([1, 0, 0]), np.array([0.5, 0.5, 1.0])
+    allowed, reward = np.array([True, True]), np.array([1.0, 0.0])
+    y = np.array([2.0, 0.0])
+    assert not post_fixpoint(state_actions, action_entries, targets, probabilities, allowed, free, reward, y, 50)
+
+
+def test_a_reward_and_a_bounded_reach_combine_and_the_bound_holds(foreign):
+    # PAYNT's herman (coin biases cut to 0..6 and three bits): expected steps to stabilise, and
+    # stabilised within 30 steps; weighted sums by backward induction over the 30 steps,
+    # then the least expected steps still to come. Storm's values of random policies (some
+    # never stabilise: infinite steps) lie inside the bound, and the bound's weighted levels
+    # lie above every policy's weighted sum
+    from parley_core.quotient.bounds import RelaxedObjectives
+
+    folder = foreign / "paynt-herman"
+    decisions = [f"{n}=0..6" for n in ("M0LFAIR", "M0HFAIR", "M1LFAIR", "M1HFAIR")] + [
+        f"{n}=0..1" for n in ("MxxA", "MxxB", "MxxC")
+    ]
+    case = family(system_from_file(folder / "herman.prism", decisions, [], folder / "herman.pctl"))
+    quotient = build_quotient(case)
+    relaxed = RelaxedObjectives(case, quotient)
+    assert relaxed.mixed_ok and relaxed.combines
+    policies = case.random(np.random.default_rng(2), 30).astype(np.int64)
+    storm = values(case, policies)
+    assert np.isinf(storm[:, 0]).any() and np.isfinite(storm[:, 0]).any()
+    outer = pareto_outer(case, quotient, bounds=relaxed)
+    assert outer.dominates(storm).all()
+    view = relaxed.restrict(np.zeros(len(case.decisions), dtype=np.int64), relaxed.sizes - 1)
+    weights = np.array([[1.0, 1.0], [0.1, 1.0], [1.0, 0.01]])
+    levels = relaxed.weighted(view, weights)
+    finite = np.isfinite(storm).all(axis=1)
+    sums = (storm[finite] * relaxed.signs) @ weights.T
+    assert (sums <= levels + 1e-9).all()
+    # and no level is looser than the ideal point's weighted sum
+    assert (levels < ideal_point(case, quotient, relaxed).points[0] * relaxed.signs @ weights.T + 1e-9).all()

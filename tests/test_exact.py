@@ -11,16 +11,17 @@ import json
 import attrs
 import numpy as np
 import pytest
-from test_bound import _families, _flip
+from test_bound import MIXED, TO_BROKEN, _families, _flip, dpm
 from test_quotient import OBJECTIVES, breaking_system, synchronised_system
 from typer.testing import CliRunner
 
 from parley_core import metrics
+from parley_core.archive import Archive, robust_front
 from parley_core.bound import refined_bound
 from parley_core.boxes import Box, box_rows, local_front
 from parley_core.cli import app
 from parley_core.evaluate.quotient import QuotientEvaluator
-from parley_core.exact import Archive, branch_and_bound, robust_front
+from parley_core.exact import Node, branch_and_bound, region_points
 from parley_core.pipeline import make_family
 from parley_core.quotient.coloring import build_quotient
 from parley_core.quotient.solver import QuotientSolver
@@ -70,6 +71,15 @@ def _pairs():
     ]:
         objectives = _flip([chosen[first], chosen[second]], maximize)
         yield f"breaking {first}+{second}", make_family(attrs.evolve(breaking, objectives=objectives))
+    # minimised expected rewards that combine into one: to one target, and in total
+    yield "breaking rewards to one target", make_family(breaking_system(TO_BROKEN))
+    mixed = breaking_system(MIXED)
+    yield (
+        "breaking reward and bounded reach",
+        make_family(attrs.evolve(mixed, objectives=_flip(mixed.objectives, {"soon"}))),
+    )
+    totals = {name: OBJECTIVES[name] for name in ("total", "total_finite")}
+    yield "breaking total rewards", make_family(breaking_system(totals))
 
 
 def _cases():
@@ -168,6 +178,36 @@ def test_stopped_early_the_bound_is_sound(limit):
     bound = refined_bound(fam, result)
     _, values = _enumerate(fam, evaluate)
     assert bound.dominates(values).all()
+
+
+def test_stopped_early_on_a_model_we_did_not_write_the_bound_is_sound(foreign):
+    # PAYNT's dpm with six decisions free (729 policies): the bound left after a second holds
+    # the open sub-families' regions (ideal box and half-spaces, as a staircase); finished,
+    # the front is enumeration's
+    fam = dpm(foreign, free=6)
+    quotient, evaluate = _solver(fam)
+    result = branch_and_bound(fam, quotient, evaluate, time_limit=1.0, leaf=4, adaptive=False)
+    assert not result.exact and result.open > 0
+    bound = refined_bound(fam, result)
+    _, values = _enumerate(fam, evaluate)
+    assert bound.dominates(values).all()
+    finished = branch_and_bound(fam, quotient, evaluate)
+    assert finished.exact
+    _assert_same_front(finished.values, values, fam)
+
+
+def test_an_open_nodes_staircase_covers_its_region_and_stays_in_its_box():
+    rng = np.random.default_rng(4)
+    ideal = np.array([-1.0, 2.0])
+    cuts = ((np.array([1.0, 1.0]), 0.5), (np.array([0.2, 1.0]), 1.2))
+    points = region_points(Node(np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), ideal, cuts))
+    assert len(points) > 2 and (points <= ideal + 1e-12).all()
+    sample = ideal - rng.uniform(0, 6, size=(4000, 2))
+    inside = sample[np.all([sample @ w <= c for w, c in cuts], axis=0)]
+    assert len(inside) > 100
+    assert ((points[None, :, :] >= inside[:, None, :]).all(axis=2).any(axis=1)).all()
+    # and it is tighter than the box: the box's corner is outside the region, and not covered
+    assert not (points >= ideal - 1e-9).all(axis=1).any()
 
 
 def test_archive_corners_are_exactly_the_undominated_region():

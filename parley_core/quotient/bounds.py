@@ -22,6 +22,12 @@ WIDEN = 1e-10
 """Every bound is widened by this much of its size (at least 1): rounding in the kernels."""
 TOLERANCE = 1e-12
 SWEEPS = 5000
+WARM = 20
+"""Sweeps from 0 before policy iteration guesses the least expected reward."""
+ITERATIONS = 20
+"""Policy iteration's rounds at most (each a sparse solve)."""
+PASSES = 50
+"""Passes that may lower the guess to a post-fixpoint before it is given up."""
 
 
 class Restricted:
@@ -33,6 +39,9 @@ class Restricted:
         self.allowed = allowed
         self.live = live
         self.reach: dict[int, np.ndarray] = {}
+        self.schedulers: list[np.ndarray] = []
+        """The schedulers the bounds found, where they are known (minimised rewards until a
+        target): an action per state, -1 where none."""
         self.compact: tuple[np.ndarray, ...] | None = None
 
 
@@ -47,6 +56,8 @@ class RelaxedObjectives:
         self.kernels = quotient.objectives
         self.sizes = np.array([len(d.service.values) for d in family.decisions], dtype=np.int64)
         self.pred = k.predecessors(r)
+        self._last: dict[object, np.ndarray] = {}
+        """The scheduler last found per key: where the next policy iteration starts."""
         n = r.states
         self.left: list[np.ndarray] = []
         self.right: list[np.ndarray] = []
@@ -79,6 +90,32 @@ class RelaxedObjectives:
             and len(probabilities) <= 1
             and all(kind in (KernelKind.CUMULATIVE, KernelKind.UNTIL, KernelKind.BOUNDED) for kind in kinds)
         )
+        # or minimised expected rewards that all stop at the same target (or none): their weighted
+        # sum is one expected reward, bounded from below like each of them
+        reward_kinds = {kind for kind in kinds}
+        self.summed_ok = (
+            all(self.supported)
+            and len(reward_kinds) == 1
+            and reward_kinds <= {KernelKind.REACH_REWARD, KernelKind.TOTAL}
+            and all(o.direction is Direction.MIN for o in family.objectives)
+            and all((right == self.right[0]).all() for right in self.right)
+        )
+        # or minimised expected rewards to a target with the probability to reach it within a
+        # step bound, maximised (PAYNT's herman: expected steps to stabilise, and stabilised
+        # within 30 steps)
+        rewards = [i for i, kind in enumerate(kinds) if kind is KernelKind.REACH_REWARD]
+        bounded = [i for i, kind in enumerate(kinds) if kind is KernelKind.BOUNDED]
+        self.mixed_ok = (
+            all(self.supported)
+            and len(bounded) == 1
+            and len(rewards) == len(kinds) - 1 >= 1
+            and all(family.objectives[i].direction is Direction.MIN for i in rewards)
+            and family.objectives[bounded[0]].direction is Direction.MAX
+            and all((right == self.right[0]).all() for right in self.right)
+            and bool(self.left[bounded[0]][:-1].all())
+        )
+        self.combines = self.weighted_ok or self.summed_ok or self.mixed_ok
+        """Whether :meth:`weighted` bounds weighted sums (else it returns infinity)."""
         self.until = probabilities[0] if probabilities else -1
         steps = [kernel.steps for kernel in quotient.objectives if kernel is not None]
         self.horizon = max(steps) if steps else 0
@@ -108,6 +145,23 @@ class RelaxedObjectives:
         out[r.decisions[view.live[owners]]] = True
         return out
 
+    def votes(self, view: Restricted, actions: np.ndarray) -> np.ndarray:
+        """How often a scheduler (an action per state, -1 where none) takes each value (by its
+        index in the domain) of each decision, over the states it acts in: [decisions, values].
+        A scheduler that takes one value per decision everywhere is a policy of the family."""
+        r = self.relaxation
+        out = np.zeros((len(self.sizes), int(self.sizes.max(initial=1))), dtype=np.int64)
+        acting = np.flatnonzero((actions >= 0) & view.live)
+        local = actions[acting] - r.state_actions[acting]
+        first, last = r.state_decisions[acting], r.state_decisions[acting + 1]
+        for offset in range(int((last - first).max(initial=0))):
+            has = first + offset < last
+            decisions = r.decisions[(first + offset)[has]]
+            sizes = r.domain_sizes[decisions]
+            np.add.at(out, (decisions, local[has] % sizes), 1)
+            local[has] //= sizes
+        return out
+
     def _reach(self, view: Restricted, i: int) -> np.ndarray:
         if i not in view.reach:
             r = self.relaxation
@@ -129,12 +183,8 @@ class RelaxedObjectives:
             elif kernel.kind is KernelKind.UNTIL:
                 out[i] = sign * self._reach(view, i)[r.initial]
             elif kernel.kind in (KernelKind.REACH_REWARD, KernelKind.TOTAL):
-                x = k.min_reward(
-                    r.state_actions, r.action_entries, r.targets, r.probabilities, view.allowed, view.live,
-                    r.rewards, kernel.reward, self.right[i], kernel.kind is KernelKind.REACH_REWARD, *self.pred,
-                    TOLERANCE, SWEEPS,
-                )  # fmt: skip
-                out[i] = -x[r.initial]
+                reach = kernel.kind is KernelKind.REACH_REWARD
+                out[i] = -self._least_reward(view, r.rewards[kernel.reward], self.right[i], reach, i)
             elif kernel.kind is KernelKind.BOUNDED and i != self.until:
                 out[i] = self._horizon(view, np.eye(len(self.signs))[i : i + 1], i)[0]
             else:
@@ -148,10 +198,155 @@ class RelaxedObjectives:
         """Per row of ``weights`` (>= 0) a sound upper bound of ``sum_i w_i * sign_i * value_i``
         over the sub-family; infinity where the objectives do not combine."""
         weights = np.atleast_2d(weights)
-        if not self.weighted_ok:
+        if self.summed_ok and not self.weighted_ok:
+            values = self._summed(view, weights)
+        elif self.mixed_ok and not self.weighted_ok:
+            values = self._mixed(view, weights)
+        elif not self.weighted_ok:
             return np.full(len(weights), np.inf)
-        values = self._horizon(view, weights, self.until)
+        else:
+            values = self._horizon(view, weights, self.until)
         return values + WIDEN * np.abs(weights).sum(axis=1) * np.maximum(1.0, np.abs(values))
+
+    def _summed(self, view: Restricted, weights: np.ndarray) -> np.ndarray:
+        """Minimised expected rewards to one target: per row of weights, minus a lower bound of
+        the least expected weighted reward; infinity (no cut) where no scheduler reaches the
+        target, for a policy may still have a value."""
+        r = self.relaxation
+        rows = r.rewards[[kernel.reward for kernel in self.kernels if kernel is not None]]
+        reach = self.kernels[0] is not None and self.kernels[0].kind is KernelKind.REACH_REWARD
+        out = np.empty(len(weights))
+        for row, w in enumerate(weights):
+            least = self._least_reward(view, w @ rows, self.right[0], reach, "weighted")
+            out[row] = -least if np.isfinite(least) else np.inf
+        return out
+
+    def _mixed(self, view: Restricted, weights: np.ndarray) -> np.ndarray:
+        """Minimised expected rewards to a target and the maximised probability to reach it
+        within a step bound: backward induction over the bound, and past it the least expected
+        reward still to come, bounded from below per state (:meth:`_least_rewards`)."""
+        r = self.relaxation
+        bounded = next(i for i, kn in enumerate(self.kernels) if kn is not None and kn.kind is KernelKind.BOUNDED)
+        kernel = self.kernels[bounded]
+        assert kernel is not None
+        rewards = [i for i in range(len(self.kernels)) if i != bounded]
+        rows = r.rewards[[kn.reward for i, kn in enumerate(self.kernels) if i != bounded and kn is not None]]
+        if view.compact is None:
+            view.compact = k.compact(r.state_actions, r.action_entries, r.targets, r.probabilities, view.allowed,
+                                     view.live)  # fmt: skip
+        out = np.empty(len(weights))
+        for row, w in enumerate(weights):
+            reward = np.ascontiguousarray(w[rewards] @ rows)
+            terminal = self._least_rewards(view, reward, self.right[0], True, "weighted")
+            solve: Any = k.reward_and_bounded  # a numba dispatcher: mypy cannot see its signature
+            out[row] = solve(
+                *view.compact, r.states, reward, self.right[0], kernel.steps, float(w[bounded]), terminal, r.initial
+            )
+        return out
+
+    def _least_reward(self, view: Restricted, reward: np.ndarray, right: np.ndarray, reach: bool, key: object) -> float:
+        return float(self._least_rewards(view, reward, right, reach, key)[self.relaxation.initial])
+
+    def _least_rewards(
+        self, view: Restricted, reward: np.ndarray, right: np.ndarray, reach: bool, key: object
+    ) -> np.ndarray:
+        """Per state a lower bound of the least expected ``reward`` (per action) until ``right``
+        (``reach``) or in total, over the sub-family's schedulers.
+
+        Iterated from 0 every iterate is below the value, but on models where the target is
+        far (queues, PAYNT's dpm) that takes thousands of sweeps. For rewards until a target
+        the iteration starts higher, still below: from the value of the best scheduler policy
+        iteration finds (a few sparse solves, started from the scheduler last found under the
+        same ``key``), lowered until it is a post-fixpoint
+        (:func:`~parley_core.quotient.subfamily.post_fixpoint`), which bounds every scheduler
+        that reaches the target almost surely, and the others' values are infinite. The
+        scheduler joins ``view.schedulers``."""
+        r = self.relaxation
+        reward = np.ascontiguousarray(reward, dtype=float)[None, :]
+        x = k.min_reward(
+            r.state_actions, r.action_entries, r.targets, r.probabilities, view.allowed, view.live, reward, 0,
+            right, reach, *self.pred, TOLERANCE, WARM if reach else SWEEPS,
+        )  # fmt: skip
+        if not reach or not np.isfinite(x[r.initial]):
+            return x
+        free = view.live & ~right & np.isfinite(x)
+        sweeps = SWEEPS
+        found = None
+        last = self._last.get(key)
+        if last is not None:
+            usable = last >= 0
+            usable[usable] = view.allowed[last[usable]]
+            found = self._policy_iteration(view, reward[0], free, x, np.where(usable, last, -1))
+        if found is None:
+            found = self._policy_iteration(view, reward[0], free, x, np.full(r.states, -1, dtype=np.int64))
+        if found is not None:
+            # less the expected steps times a small margin: the scheduler's own actions then
+            # keep that margin, and what rounding or other actions need is lowered below
+            guess, steps, actions = found
+            self._last[key] = actions
+            view.schedulers.append(actions)
+            margin = 1e-9 * (1.0 + guess.max()) / max(1.0, steps.max())
+            y = np.where(free, guess - margin * steps, np.where(right, 0.0, np.inf))
+            y[~view.live] = 0.0
+            if k.post_fixpoint(r.state_actions, r.action_entries, r.targets, r.probabilities, view.allowed, free,
+                               reward[0], y, PASSES):  # fmt: skip
+                x = np.where(free, np.maximum(x, y), x)
+                sweeps = WARM  # a few more sweeps take back the margin; it is sound wherever it stops
+        k.min_reward_from(r.state_actions, r.action_entries, r.targets, r.probabilities, view.allowed, view.live,
+                          reward[0], right, True, x, TOLERANCE, sweeps)  # fmt: skip
+        return x
+
+    def _policy_iteration(self, view: Restricted, reward: np.ndarray, free: np.ndarray, x: np.ndarray, start):
+        """The values, expected steps and actions of the best scheduler policy iteration finds
+        on ``free`` from ``start`` (an action per state, -1 where it takes the greedy one of
+        ``x``); None if a solve fails (a scheduler that does not reach the target). Only a
+        guess: the caller checks it before using it."""
+        import scipy.sparse as sp
+        from scipy.sparse.linalg import splu
+
+        r = self.relaxation
+        index = np.full(r.states, -1, dtype=np.int64)
+        states = np.flatnonzero(free)
+        index[states] = np.arange(len(states))
+        guess = chosen = factor = None
+        current = start
+        values = x
+        for _ in range(ITERATIONS):
+            actions = k.greedy(r.state_actions, r.action_entries, r.targets, r.probabilities, view.allowed, free,
+                               reward, values, current, guess is None)[states]  # fmt: skip
+            if (actions < 0).any() or (chosen is not None and (actions == chosen).all()):
+                break
+            starts, ends = r.action_entries[actions], r.action_entries[actions + 1]
+            counts = ends - starts
+            entries = np.repeat(starts - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
+            rows = np.repeat(np.arange(len(states)), counts)
+            columns = index[r.targets[entries]]
+            inside = columns >= 0
+            matrix = sp.csr_matrix(
+                (r.probabilities[entries][inside], (rows[inside], columns[inside])), shape=(len(states),) * 2
+            )
+            with np.errstate(all="ignore"):
+                try:
+                    solver = splu(sp.identity(len(states), format="csc") - matrix.tocsc())
+                    solved = solver.solve(reward[actions])
+                except RuntimeError:  # singular: the scheduler does not reach the target
+                    break
+            if not np.isfinite(solved).all() or (solved < -1e-9).any():
+                break
+            chosen, guess, factor = actions, np.maximum(solved, 0.0), solver
+            values = np.where(free, 0.0, x)
+            values[states] = guess
+            current = np.full(r.states, -1, dtype=np.int64)
+            current[states] = chosen
+        if guess is None or factor is None or chosen is None:
+            return None
+        with np.errstate(all="ignore"):
+            steps = factor.solve(np.ones(len(states)))
+        if not np.isfinite(steps).all():
+            return None
+        out, length, policy = np.zeros(r.states), np.zeros(r.states), np.full(r.states, -1, dtype=np.int64)
+        out[states], length[states], policy[states] = guess, steps, chosen
+        return out, length, policy
 
     def _horizon(self, view: Restricted, weights: np.ndarray, until: int) -> np.ndarray:
         r = self.relaxation
@@ -180,3 +375,23 @@ class RelaxedObjectives:
                 until_steps, gain, gain * reach, r.initial,
             )  # fmt: skip
         return out
+
+
+def staircase(top: np.ndarray, weights: np.ndarray, levels: np.ndarray, steps: int) -> np.ndarray:
+    """Points (sign space, two objectives, maximised) whose orthants cover the region below
+    ``top`` and every half-space ``weights @ v <= levels`` (weights > 0, finite): the region's
+    boundary sampled at ``steps`` + 1 values of the first objective, each point taking the
+    highest second objective of its interval (the boundary does not rise)."""
+
+    def height(x: np.ndarray) -> np.ndarray:
+        """The largest second objective the region allows at first objective x."""
+        cuts = (levels[None, :] - weights[None, :, 0] * x[:, None]) / weights[None, :, 1]
+        return np.minimum(top[1], cuts.min(axis=1))
+
+    # the region's top-left corner: where the cuts first go below the box
+    left = float(np.min((levels - weights[:, 1] * top[1]) / weights[:, 0]))
+    left = min(left, float(top[0]))
+    grid = np.linspace(left, float(top[0]), steps + 1)
+    heights = height(grid)
+    # point i covers x in [grid[i-1], grid[i]] (the height does not increase); the first covers x <= left
+    return np.vstack([[grid[0], top[1]], np.column_stack([grid[1:], heights[:-1]])])

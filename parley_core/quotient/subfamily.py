@@ -153,6 +153,18 @@ def min_reward(state_actions, action_entries, targets, probabilities, allowed, l
         for s in range(states):
             if not reach[s]:
                 x[s] = np.inf
+    min_reward_from(state_actions, action_entries, targets, probabilities, allowed, live, rewards[row], right,
+                    has_right, x, tolerance, max_sweeps)  # fmt: skip
+    return x
+
+
+@njit(cache=True)
+def min_reward_from(state_actions, action_entries, targets, probabilities, allowed, live, reward, right, has_right,
+                    x, tolerance, max_sweeps):  # fmt: skip
+    """Gauss-Seidel sweeps of the least expected reward, in place from ``x``: if ``x`` is below
+    every scheduler's value (0 is; so is a checked post-fixpoint, :func:`post_fixpoint`),
+    every iterate is, for each update is at most what any scheduler's choice gives."""
+    states = state_actions.shape[0] - 1
     for sweep in range(max_sweeps):
         change = 0.0
         for k in range(states):
@@ -163,7 +175,7 @@ def min_reward(state_actions, action_entries, targets, probabilities, allowed, l
             for a in range(state_actions[s], state_actions[s + 1]):
                 if not allowed[a]:
                     continue
-                v = rewards[row, a]
+                v = reward[a]
                 for e in range(action_entries[a], action_entries[a + 1]):
                     v += probabilities[e] * x[targets[e]]
                 best = min(best, v)
@@ -175,7 +187,66 @@ def min_reward(state_actions, action_entries, targets, probabilities, allowed, l
             x[s] = best
         if change <= tolerance:
             break
-    return x
+
+
+@njit(cache=True)
+def greedy(state_actions, action_entries, targets, probabilities, allowed, free, reward, x, current, keep):
+    """Per state of ``free`` the allowed action least in expected reward given ``x`` (-1
+    elsewhere); the ``current`` one (if not -1) unless another is less by more than 1e-12 of
+    its value, so that policy iteration does not cycle between ties, or whatever its value
+    with ``keep``."""
+    states = state_actions.shape[0] - 1
+    out = np.full(states, -1, dtype=np.int64)
+    for s in range(states):
+        if not free[s]:
+            continue
+        best = np.inf
+        kept = np.inf
+        for a in range(state_actions[s], state_actions[s + 1]):
+            if not allowed[a]:
+                continue
+            v = reward[a]
+            for e in range(action_entries[a], action_entries[a + 1]):
+                v += probabilities[e] * x[targets[e]]
+            if a == current[s]:
+                kept = v
+            if v < best:
+                best = v
+                out[s] = a
+        if current[s] >= 0 and allowed[current[s]] and (keep or kept <= best + 1e-12 * abs(best)):
+            out[s] = current[s]
+    return out
+
+
+@njit(cache=True)
+def post_fixpoint(state_actions, action_entries, targets, probabilities, allowed, free, reward, y, max_passes):
+    """Lower ``y`` (>= 0, in place) on ``free`` until every allowed action of every free state
+    gives at least ``y`` there, with a margin of 1e-13 of its value for rounding: then ``y`` is
+    below every value of an expected reward to reach a target (0 outside ``free``) that a
+    scheduler reaching it almost surely has (``y <= r + P y`` along any such scheduler, summed
+    over its steps), and schedulers that do not have infinite values. False if ``max_passes``
+    did not settle it."""
+    states = state_actions.shape[0] - 1
+    for _ in range(max_passes):
+        lowered = False
+        for s in range(states):
+            if not free[s] or np.isinf(y[s]):
+                continue
+            best = np.inf
+            for a in range(state_actions[s], state_actions[s + 1]):
+                if not allowed[a]:
+                    continue
+                v = reward[a]
+                for e in range(action_entries[a], action_entries[a + 1]):
+                    v += probabilities[e] * y[targets[e]]
+                best = min(best, v)
+            best = best * (1.0 - 1e-13)
+            if y[s] > best:
+                y[s] = max(best, 0.0)
+                lowered = True
+        if not lowered:
+            return True
+    return False
 
 
 @njit(cache=True)
@@ -275,6 +346,37 @@ def weighted_horizon(order, state_ptr, action_of, entry_ptr, targets, probabilit
         b_now, b_next = b_next, b_now
         a_now, a_next = a_next, a_now
     return a_next[initial] if has_until else b_next[initial]
+
+
+@njit(cache=True)
+def reward_and_bounded(order, state_ptr, action_of, entry_ptr, targets, probabilities, states, reward, right, steps,
+                       gain, terminal, initial):  # fmt: skip
+    """The best of ``gain`` times the probability to reach ``right`` within ``steps`` steps less
+    the expected ``reward`` (per action) until ``right``, over all schedulers of the
+    sub-family (``compact``'s arrays; history-dependent ones too): backward induction over
+    the steps; past them a state not in ``right`` is worth ``-terminal[s]``, a lower bound of
+    the least expected reward still to come (infinite where the target cannot be reached)."""
+    now = np.zeros(states)
+    after = np.zeros(states)
+    for i in range(order.shape[0]):
+        s = order[i]
+        after[s] = 0.0 if right[s] else -terminal[s]
+    for _ in range(steps + 1):  # times steps down to 0
+        for i in range(order.shape[0]):
+            s = order[i]
+            if right[s]:
+                now[s] = gain
+                continue
+            best = -np.inf
+            for j in range(state_ptr[i], state_ptr[i + 1]):
+                v = -reward[action_of[j]]
+                for e in range(entry_ptr[j], entry_ptr[j + 1]):
+                    if probabilities[e] > 0.0:
+                        v += probabilities[e] * after[targets[e]]
+                best = max(best, v)
+            now[s] = best
+        now, after = after, now
+    return after[initial]
 
 
 @njit(cache=True)
