@@ -59,6 +59,12 @@ BATCH = 4096
 """Policies handed to the evaluator at a time."""
 BOX_BATCH = 65536
 """Policies of whole boxes handed to a box evaluator at a time."""
+BATCH_SECONDS = 5.0
+"""Once the evaluator's speed is measured, a batch holds at most what it solves in this long
+(at least :data:`SMALLEST_BATCH` policies): with slow policies (PAYNT's dpm, about 7 ms
+each on two workers) batches of 65,536 kept the search waiting 20 minutes past its time
+limit for the batches in flight."""
+SMALLEST_BATCH = 64
 IN_FLIGHT = 2
 """Batches an evaluator may be solving while nodes are bounded: the workers always have the
 next batch when they finish one."""
@@ -200,6 +206,14 @@ def branch_and_bound(
         return max(leaf, min(LARGEST_LEAF, int(LEAF_COST * per_bound / per_policy)))
 
     inflight: deque[Pending] = deque()
+
+    def batch_limit() -> int:
+        most = BATCH if fronts is None else BOX_BATCH
+        if not spent["policies"]:
+            return most
+        per_policy = max(spent["policy"] / spent["policies"], 1e-12)
+        return int(min(most, max(SMALLEST_BATCH, BATCH_SECONDS / per_policy)))
+
     tried = Tried()
 
     def take(batch: BoxValues) -> None:
@@ -240,7 +254,7 @@ def branch_and_bound(
         pending.append(box)
         spent["pending"] += box.size
         # the first box goes at once: its time is what the adaptive leaf size is measured by
-        if not spent["policies"] or spent["pending"] >= (BATCH if fronts is None else BOX_BATCH):
+        if not spent["policies"] or spent["pending"] >= batch_limit():
             flush()
 
     def resolve(share: int) -> None:

@@ -275,3 +275,25 @@ def test_ties_at_the_level_of_float_noise_are_not_two_front_values():
     assert robust_front(real).tolist() == [0, 1, 2]
     # equal values are both kept (the archive keeps the first of them before this)
     assert robust_front(np.array([[1.0, -2.0], [1.0, -2.0]])).tolist() == [0, 1]
+
+
+def test_a_time_limit_is_kept_when_policies_are_slow(monkeypatch):
+    # batches are cut to what the evaluator solves in BATCH_SECONDS once its speed is known,
+    # so that a stopped search does not wait long for what is in flight (on PAYNT's dpm,
+    # batches of 65,536 policies once kept it 20 minutes past its limit)
+    import time
+
+    from parley_core import exact
+
+    monkeypatch.setattr(exact, "BATCH_SECONDS", 0.1)
+    fam = narrow("web_ids", ["rounds=6"], 4)
+    quotient, solve = _solver(fam)
+
+    def slow(rows):
+        time.sleep(0.002 * len(rows))
+        return solve(rows)
+
+    began = time.perf_counter()
+    result = branch_and_bound(fam, quotient, slow, time_limit=0.5, leaf=64, adaptive=False)
+    assert not result.exact and result.stopped_by == "time"
+    assert time.perf_counter() - began < 2.0  # a batch of 4,096 would take 8 s

@@ -171,14 +171,7 @@ def min_reward_from(state_actions, action_entries, targets, probabilities, allow
             s = k if sweep % 2 == 0 else states - 1 - k
             if not live[s] or (has_right and right[s]) or np.isinf(x[s]):
                 continue
-            best = np.inf
-            for a in range(state_actions[s], state_actions[s + 1]):
-                if not allowed[a]:
-                    continue
-                v = reward[a]
-                for e in range(action_entries[a], action_entries[a + 1]):
-                    v += probabilities[e] * x[targets[e]]
-                best = min(best, v)
+            best = least_action(state_actions, action_entries, targets, probabilities, allowed, reward, x, s, -1)[0]
             best = max(best, x[s])
             if np.isinf(best):
                 change = np.inf
@@ -187,6 +180,28 @@ def min_reward_from(state_actions, action_entries, targets, probabilities, allow
             x[s] = best
         if change <= tolerance:
             break
+
+
+@njit(cache=True)
+def least_action(state_actions, action_entries, targets, probabilities, allowed, reward, x, s, current):
+    """At state ``s``, the least over allowed actions of the reward plus the expected ``x``
+    after it, the action that gives it (-1 if none is allowed), and what action ``current``
+    gives (infinity if it is not one of them)."""
+    best = np.inf
+    arg = -1
+    kept = np.inf
+    for a in range(state_actions[s], state_actions[s + 1]):
+        if not allowed[a]:
+            continue
+        v = reward[a]
+        for e in range(action_entries[a], action_entries[a + 1]):
+            v += probabilities[e] * x[targets[e]]
+        if a == current:
+            kept = v
+        if v < best:
+            best = v
+            arg = a
+    return best, arg, kept
 
 
 @njit(cache=True)
@@ -200,19 +215,9 @@ def greedy(state_actions, action_entries, targets, probabilities, allowed, free,
     for s in range(states):
         if not free[s]:
             continue
-        best = np.inf
-        kept = np.inf
-        for a in range(state_actions[s], state_actions[s + 1]):
-            if not allowed[a]:
-                continue
-            v = reward[a]
-            for e in range(action_entries[a], action_entries[a + 1]):
-                v += probabilities[e] * x[targets[e]]
-            if a == current[s]:
-                kept = v
-            if v < best:
-                best = v
-                out[s] = a
+        best, out[s], kept = least_action(
+            state_actions, action_entries, targets, probabilities, allowed, reward, x, s, current[s]
+        )
         if current[s] >= 0 and allowed[current[s]] and (keep or kept <= best + 1e-12 * abs(best)):
             out[s] = current[s]
     return out
@@ -232,14 +237,7 @@ def post_fixpoint(state_actions, action_entries, targets, probabilities, allowed
         for s in range(states):
             if not free[s] or np.isinf(y[s]):
                 continue
-            best = np.inf
-            for a in range(state_actions[s], state_actions[s + 1]):
-                if not allowed[a]:
-                    continue
-                v = reward[a]
-                for e in range(action_entries[a], action_entries[a + 1]):
-                    v += probabilities[e] * y[targets[e]]
-                best = min(best, v)
+            best = least_action(state_actions, action_entries, targets, probabilities, allowed, reward, y, s, -1)[0]
             best = best * (1.0 - 1e-13)
             if y[s] > best:
                 y[s] = max(best, 0.0)
