@@ -296,4 +296,4 @@ def test_a_time_limit_is_kept_when_policies_are_slow(monkeypatch):
     began = time.perf_counter()
     result = branch_and_bound(fam, quotient, slow, time_limit=0.5, leaf=64, adaptive=False)
     assert not result.exact and result.stopped_by == "time"
-    assert time.perf_counter() - began < 2.0  # a batch of 4,096 would take 8 s
+    assert time.perf_counter() - began < 4.0  # a batch of 4,096 would take 8 s
