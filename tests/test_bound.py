@@ -251,3 +251,31 @@ def test_a_reward_and_a_bounded_reach_combine_and_the_bound_holds(foreign):
     assert (sums <= levels + 1e-9).all()
     # and no level is looser than the ideal point's weighted sum
     assert (levels < ideal_point(case, quotient, relaxed).points[0] * relaxed.signs @ weights.T + 1e-9).all()
+
+
+def test_a_sub_family_of_one_policy_has_schedulers_that_vote_for_it(foreign):
+    # restricted to one policy, every scheduler the bounds find is that policy: its votes
+    # (the mixed-radix digits of each state's action) name the policy's value of each decision
+    # the reached states consult, and no other value. herman's states consult several
+    # decisions at once (its coin biases and bits), so every digit is read
+    from parley_core.quotient.bounds import RelaxedObjectives
+
+    folder = foreign / "paynt-herman"
+    decisions = [f"{n}=0..3" for n in ("M0LFAIR", "M0HFAIR", "M1LFAIR", "M1HFAIR")] + [
+        f"{n}=0..1" for n in ("MxxA", "MxxB", "MxxC")
+    ]
+    case = family(system_from_file(folder / "herman.prism", decisions, [], folder / "herman.pctl"))
+    relaxed = RelaxedObjectives(case, build_quotient(case))
+    r = relaxed.relaxation
+    assert np.diff(r.state_decisions).max() > 1
+    policy = np.array([2, 3, 1, 2, 1, 0, 1])  # coin biases from 1: it stabilises
+    view = relaxed.restrict(policy, policy.copy())
+    relaxed.ideal(view)
+    relaxed.weighted(view, np.array([[1.0, 10.0]]))
+    assert len(view.schedulers) == 2
+    consulted = relaxed.consulted(view)
+    for actions in view.schedulers:
+        votes = relaxed.votes(view, actions)
+        assert (votes.sum(axis=1) > 0).tolist() == consulted.tolist()
+        assert (votes.argmax(axis=1)[consulted] == policy[consulted]).all()
+        assert (np.count_nonzero(votes, axis=1) <= 1).all()

@@ -231,18 +231,30 @@ class RelaxedObjectives:
         assert kernel is not None
         rewards = [i for i in range(len(self.kernels)) if i != bounded]
         rows = r.rewards[[kn.reward for i, kn in enumerate(self.kernels) if i != bounded and kn is not None]]
-        if view.compact is None:
-            view.compact = k.compact(r.state_actions, r.action_entries, r.targets, r.probabilities, view.allowed,
-                                     view.live)  # fmt: skip
         out = np.empty(len(weights))
         for row, w in enumerate(weights):
             reward = np.ascontiguousarray(w[rewards] @ rows)
             terminal = self._least_rewards(view, reward, self.right[0], True, "weighted")
             solve: Any = k.reward_and_bounded  # a numba dispatcher: mypy cannot see its signature
             out[row] = solve(
-                *view.compact, r.states, reward, self.right[0], kernel.steps, float(w[bounded]), terminal, r.initial
+                *self._compact(view),
+                r.states,
+                reward,
+                self.right[0],
+                kernel.steps,
+                float(w[bounded]),
+                terminal,
+                r.initial,
             )
         return out
+
+    def _compact(self, view: Restricted) -> tuple[np.ndarray, ...]:
+        """The sub-family's part of the relaxation as its own CSR, built once per view."""
+        if view.compact is None:
+            r = self.relaxation
+            view.compact = k.compact(r.state_actions, r.action_entries, r.targets, r.probabilities, view.allowed,
+                                     view.live)  # fmt: skip
+        return view.compact
 
     def _least_reward(self, view: Restricted, reward: np.ndarray, right: np.ndarray, reach: bool, key: object) -> float:
         return float(self._least_rewards(view, reward, right, reach, key)[self.relaxation.initial])
@@ -363,15 +375,12 @@ class RelaxedObjectives:
             else:
                 reach = self._reach(view, until)
         horizon = max([*steps.tolist(), until_steps, 0])
-        if view.compact is None:
-            view.compact = k.compact(r.state_actions, r.action_entries, r.targets, r.probabilities, view.allowed,
-                                     view.live)  # fmt: skip
         out = np.empty(len(weights))
         solve: Any = k.weighted_horizon  # a numba dispatcher: mypy cannot see its signature
         for row, (w, c) in enumerate(zip(weights, coefficients)):
             gain = float(w[until] * self.signs[until]) if until >= 0 else 0.0
             out[row] = solve(
-                *view.compact, n, r.rewards, rows, steps, np.ascontiguousarray(c), horizon, until >= 0, left, right,
+                *self._compact(view), n, r.rewards, rows, steps, np.ascontiguousarray(c), horizon, until >= 0, left, right,
                 until_steps, gain, gain * reach, r.initial,
             )  # fmt: skip
         return out
