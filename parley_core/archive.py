@@ -1,7 +1,8 @@
 """The archive of evaluated values (sign space: every objective maximised) that branch and
 bound prunes against: its *local upper bounds* (Klamroth, Lacour and Vanderpooten, EJOR
 2015), the corners whose open orthants make up exactly the region no archived value weakly
-dominates; and the ties at the level of float noise a front does not keep twice."""
+dominates; the ties at the level of float noise a front does not keep twice; and the
+staircase of points that covers a region of two objectives cut by half-spaces."""
 
 from __future__ import annotations
 
@@ -92,3 +93,23 @@ def robust_front(points: np.ndarray) -> np.ndarray:
                 continue
         kept.append(int(i))
     return np.sort(np.array(kept, dtype=np.int64))
+
+
+def staircase(top: np.ndarray, weights: np.ndarray, levels: np.ndarray, steps: int) -> np.ndarray:
+    """Points (sign space, two objectives, maximised) whose orthants cover the region below
+    ``top`` and every half-space ``weights @ v <= levels`` (weights > 0, finite): the region's
+    boundary sampled at ``steps`` + 1 values of the first objective, each point taking the
+    highest second objective of its interval (the boundary does not rise)."""
+
+    def height(x: np.ndarray) -> np.ndarray:
+        """The largest second objective the region allows at first objective x."""
+        cuts = (levels[None, :] - weights[None, :, 0] * x[:, None]) / weights[None, :, 1]
+        return np.minimum(top[1], cuts.min(axis=1))
+
+    # the region's top-left corner: where the cuts first go below the box
+    left = float(np.min((levels - weights[:, 1] * top[1]) / weights[:, 0]))
+    left = min(left, float(top[0]))
+    grid = np.linspace(left, float(top[0]), steps + 1)
+    heights = height(grid)
+    # point i covers x in [grid[i-1], grid[i]] (the height does not increase); the first covers x <= left
+    return np.vstack([[grid[0], top[1]], np.column_stack([grid[1:], heights[:-1]])])

@@ -23,8 +23,9 @@ import numpy as np
 from attrs import field, frozen
 
 from parley_core import metrics
+from parley_core.archive import staircase
 from parley_core.model import Direction, Family, Objective
-from parley_core.quotient.bounds import RelaxedObjectives, staircase
+from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.compile import KernelKind, KernelObjective
 from parley_core.quotient.relaxation import storm_model

@@ -38,10 +38,10 @@ from collections.abc import Callable
 import numpy as np
 from attrs import field, frozen
 
-from parley_core.archive import Archive, depth, robust_front
+from parley_core.archive import Archive, depth, robust_front, staircase
 from parley_core.boxes import FLOOR, Box, BoxValues, Pending, Ready, box_rows, local_front
 from parley_core.model import Family
-from parley_core.quotient.bounds import RelaxedObjectives, staircase
+from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 
 LEAF = 48
