@@ -14,10 +14,17 @@ Storm answers only unbounded reachability probabilities (``P [F psi]``) and expe
 reachability rewards (``R [F psi]``) this way; every other objective keeps the MDP's value
 (:func:`parley_core.bound.ideal_point`). A step-bounded reward (``C<=k``: robot_grid's cost,
 every objective of web_ids and tas) would need the step counter unfolded into the POMDP.
+
+Storm's belief exploration has no time limit of its own, and it can run for minutes on a
+small model (the hand-written breaking model's ``R{"once"}=? [F broken]``: 2,180 states, no
+answer in 5 minutes) without answering Ctrl-C. Each query therefore runs in a process of its
+own, which is stopped after :data:`SECONDS` (or the caller's limit); the MDP's value stands
+for that objective, and the bound's details say so.
 """
 
 from __future__ import annotations
 
+import multiprocessing
 import re
 import time
 
@@ -29,6 +36,9 @@ from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.relaxation import storm_model
 
+SECONDS = 60.0
+"""How long Storm's belief exploration may take per objective, from the start of its process
+(importing stormpy there takes about a second)."""
 RESOLUTION = 2
 """The discretization's resolution: higher is tighter and costs more (robot_grid 5x5: 0.2 s
 at 2, 1.3 s at 3)."""
@@ -48,49 +58,80 @@ def belief_query(query: str | None) -> str | None:
     return query if _REWARD.match(query) else None
 
 
+def _discretize(relaxation, labels, query: str, resolution: int, connection) -> None:
+    """In a process of its own: Storm's belief discretization of the relaxation read as a
+    POMDP, sent as ("value", v) or ("error", the first line of Storm's refusal)."""
+    import stormpy
+    import stormpy.pomdp
+
+    model = storm_model(relaxation, labels, pomdp=True)
+    (prop,) = stormpy.parse_properties(query)
+    try:
+        result = stormpy.pomdp.verify_with_belief_discretization(
+            model, prop, resolution=resolution, environment=sound_environment(PRECISION, relative=True)
+        )
+    except RuntimeError as error:  # Storm refuses this POMDP or query
+        connection.send(("error", str(error).splitlines()[0]))
+        return
+    connection.send(("value", float(result.value)))
+
+
+def _within(relaxation, labels, query: str, resolution: int, seconds: float) -> tuple[str, float | str]:
+    """:func:`_discretize` in a spawned process, stopped after ``seconds``: ("value", v), or
+    ("error", why) when Storm refused, died or ran out of time."""
+    context = multiprocessing.get_context("spawn")
+    receive, send = context.Pipe(duplex=False)
+    process = context.Process(target=_discretize, args=(relaxation, labels, query, resolution, send), daemon=True)
+    process.start()
+    send.close()
+    try:
+        if receive.poll(seconds):
+            return receive.recv()
+        return "error", f"Storm's belief exploration did not finish in {seconds:g} s (stopped)"
+    except EOFError:
+        return "error", f"Storm's belief exploration ended without an answer (exit status {process.exitcode})"
+    finally:
+        if process.is_alive():
+            process.kill()
+        process.join()
+        receive.close()
+
+
 def belief_ideal(
     family: Family,
     quotient: Quotient,
     bounds: RelaxedObjectives | None = None,
     resolution: int = RESOLUTION,
     ideal: Bound | None = None,
+    seconds: float | None = None,
 ) -> Bound:
     """The ideal point (``ideal``, else :func:`~parley_core.bound.ideal_point`), each objective
-    Storm's belief exploration answers replaced by the POMDP's over-approximation where that
-    is tighter (widened by the solver's precision); ``details`` holds both values per
-    objective."""
-    import stormpy
-    import stormpy.pomdp
-
+    Storm's belief exploration answers within ``seconds`` (default :data:`SECONDS`) replaced by
+    the POMDP's over-approximation where that is tighter (widened by the solver's precision);
+    ``details`` holds both values per objective, or the MDP's and why Storm gave none."""
     start = time.perf_counter()
+    seconds = SECONDS if seconds is None else seconds
     bounds = bounds or RelaxedObjectives(family, quotient)
     ideal = ideal or ideal_point(family, quotient, bounds)
     labels, queries = relaxation_queries(family, quotient)
     asked = [belief_query(q) for q in queries]
     point = np.array(ideal.points[0], dtype=float)
     details: dict[str, object] = {}
-    if any(q is not None for q in asked):
-        model = storm_model(bounds.relaxation, labels, pomdp=True)
-        environment = sound_environment(PRECISION, relative=True)
-        for i, (objective, query) in enumerate(zip(family.objectives, asked)):
-            if query is None:
-                continue
-            (prop,) = stormpy.parse_properties(query)
-            try:
-                result = stormpy.pomdp.verify_with_belief_discretization(
-                    model, prop, resolution=resolution, environment=environment
-                )
-            except RuntimeError as error:  # Storm refuses this POMDP or query: the MDP's value stands
-                details[objective.name] = {"mdp": float(ideal.points[0][i]), "error": str(error).splitlines()[0]}
-                continue
-            value = float(result.value)
-            # sound value iteration to PRECISION of the value, on either side of it: widened by twice that
-            slack = 2 * PRECISION * max(1.0, abs(value)) if np.isfinite(value) else 0.0
-            if objective.direction is Direction.MAX:
-                point[i] = min(point[i], value + slack)
-            else:
-                point[i] = max(point[i], value - slack)
-            details[objective.name] = {"mdp": float(ideal.points[0][i]), "pomdp": value}
+    for i, (objective, query) in enumerate(zip(family.objectives, asked)):
+        if query is None:
+            continue
+        kind, answer = _within(bounds.relaxation, labels, query, resolution, seconds)
+        if kind == "error":  # the MDP's value stands
+            details[objective.name] = {"mdp": float(ideal.points[0][i]), "error": answer}
+            continue
+        value = float(answer)
+        # sound value iteration to PRECISION of the value, on either side of it: widened by twice that
+        slack = 2 * PRECISION * max(1.0, abs(value)) if np.isfinite(value) else 0.0
+        if objective.direction is Direction.MAX:
+            point[i] = min(point[i], value + slack)
+        else:
+            point[i] = max(point[i], value - slack)
+        details[objective.name] = {"mdp": float(ideal.points[0][i]), "pomdp": value}
     return Bound(
         objectives=family.objectives,
         points=point.reshape(1, -1),

@@ -8,6 +8,7 @@ The run directory is written from the :class:`RunResult` by :mod:`parley_core.re
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -194,7 +195,9 @@ def run(
     (:mod:`parley_core.bound`); "refine" runs branch
     and bound over the decisions' ranges after the search (:mod:`parley_core.exact`) for at
     most ``bound_time`` seconds (None: until the front is proven exact), whose policies join
-    the front and whose open sub-families make the bound; "none" skips it.
+    the front and whose open sub-families make the bound; "none" skips it. With "belief",
+    ``bound_time`` limits Storm's belief exploration per objective (None:
+    :data:`parley_core.belief.SECONDS`).
 
     ``warm``: policies (an earlier front, say for other numbers of the model) the search
     starts from besides the baselines (a warm start, :func:`parley_core.search.run.initial_population`).
@@ -322,9 +325,9 @@ def run(
         with _timed(timings, "bound"):
             reporter.stage("bound")
             found = (
-                robust.bound(scenarios, engine, bound, run_bounds.outer)
+                robust.bound(scenarios, engine, bound, functools.partial(run_bounds.outer, seconds=bound_time))
                 if scenarios
-                else run_bounds.outer(family, engine, bound)[0]
+                else run_bounds.outer(family, engine, bound, bound_time)[0]
             )
     reference = metrics.reference_point(family.objectives, np.array(front.values), np.array(baseline.values))
     describe = getattr(engine, "describe", None)

@@ -26,10 +26,11 @@ def family_bound(family: Family, method: str = "pareto") -> Bound:
     return outer(family, None, method)[0]
 
 
-def outer(family: Family, engine: Evaluator | None, method: str):
+def outer(family: Family, engine: Evaluator | None, method: str, seconds: float | None = None):
     """The cheap bound (the ideal point; cut by weighted sums for "pareto", and for "belief"
-    after the ideal point is tightened on the relaxation read as a POMDP) and the family's
-    relaxed objectives it was computed on, for branch and bound to reuse."""
+    after the ideal point is tightened on the relaxation read as a POMDP, Storm's belief
+    exploration stopped after ``seconds`` per objective) and the family's relaxed objectives
+    it was computed on, for branch and bound to reuse."""
     from parley_core.bound import ideal_point, pareto_outer
     from parley_core.quotient.bounds import RelaxedObjectives
     from parley_core.quotient.coloring import build_quotient
@@ -45,7 +46,7 @@ def outer(family: Family, engine: Evaluator | None, method: str):
         return pareto_outer(family, quotient, found, bounds), bounds
     from parley_core.belief import belief_ideal
 
-    found = belief_ideal(family, quotient, bounds, ideal=found)  # on the relaxation read as a POMDP
+    found = belief_ideal(family, quotient, bounds, ideal=found, seconds=seconds)  # the relaxation as a POMDP
     cut = pareto_outer(family, quotient, found, bounds)
     if cut is found:
         return found, bounds

@@ -40,6 +40,16 @@ def dpm(foreign: Path, free: int = 16):
     return family(system_from_file(folder / "dpm.prism", decisions, [], folder / "dpm.pctl"))
 
 
+def herman(foreign: Path, biases: str, bits: str = "0..1"):
+    """PAYNT's herman family with its four coin biases cut to ``biases`` and its three bits
+    to ``bits`` (bias 0 never flips a coin to 0: some policies never stabilise)."""
+    folder = foreign / "paynt-herman"
+    decisions = [f"{n}={biases}" for n in ("M0LFAIR", "M0HFAIR", "M1LFAIR", "M1HFAIR")] + [
+        f"{n}={bits}" for n in ("MxxA", "MxxB", "MxxC")
+    ]
+    return family(system_from_file(folder / "herman.prism", decisions, [], folder / "herman.pctl"))
+
+
 def _flip(objectives, maximize):
     return [attrs.evolve(o, direction=Direction.MAX) if o.name in maximize else o for o in objectives]
 
@@ -230,11 +240,7 @@ def test_a_reward_and_a_bounded_reach_combine_and_the_bound_holds(foreign):
     # lie above every policy's weighted sum
     from parley_core.quotient.bounds import RelaxedObjectives
 
-    folder = foreign / "paynt-herman"
-    decisions = [f"{n}=0..6" for n in ("M0LFAIR", "M0HFAIR", "M1LFAIR", "M1HFAIR")] + [
-        f"{n}=0..1" for n in ("MxxA", "MxxB", "MxxC")
-    ]
-    case = family(system_from_file(folder / "herman.prism", decisions, [], folder / "herman.pctl"))
+    case = herman(foreign, "0..6")
     quotient = build_quotient(case)
     relaxed = RelaxedObjectives(case, quotient)
     assert relaxed.mixed_ok and relaxed.combines
@@ -253,6 +259,26 @@ def test_a_reward_and_a_bounded_reach_combine_and_the_bound_holds(foreign):
     assert (levels < ideal_point(case, quotient, relaxed).points[0] * relaxed.signs @ weights.T + 1e-9).all()
 
 
+def test_where_one_scheduler_attains_the_ideal_point_one_weighted_sum_shows_it(foreign, monkeypatch):
+    # PAYNT's herman from bias 1: one scheduler of the relaxation has both the fewest steps and
+    # the likeliest stabilisation within 30 steps, so no weighted sum can cut the ideal box;
+    # the Pareto bound stops after one balanced sum (two more give its scale) and is the ideal point
+    from parley_core.quotient.bounds import RelaxedObjectives
+
+    case = herman(foreign, "1..6")
+    quotient = build_quotient(case)
+    relaxed = RelaxedObjectives(case, quotient)
+    ideal = ideal_point(case, quotient, relaxed)
+    solved = []
+    weighted = relaxed.weighted
+    monkeypatch.setattr(relaxed, "weighted", lambda view, w: solved.append(len(w)) or weighted(view, w))
+    outer = pareto_outer(case, quotient, ideal, relaxed)
+    assert sum(solved) == 3
+    np.testing.assert_array_equal(outer.points, ideal.points)
+    storm = values(case, case.random(np.random.default_rng(4), 20).astype(np.int64))
+    assert outer.dominates(storm).all()
+
+
 def test_a_sub_family_of_one_policy_has_schedulers_that_vote_for_it(foreign):
     # restricted to one policy, every scheduler the bounds find is that policy: its votes
     # (the mixed-radix digits of each state's action) name the policy's value of each decision
@@ -260,11 +286,7 @@ def test_a_sub_family_of_one_policy_has_schedulers_that_vote_for_it(foreign):
     # decisions at once (its coin biases and bits), so every digit is read
     from parley_core.quotient.bounds import RelaxedObjectives
 
-    folder = foreign / "paynt-herman"
-    decisions = [f"{n}=0..3" for n in ("M0LFAIR", "M0HFAIR", "M1LFAIR", "M1HFAIR")] + [
-        f"{n}=0..1" for n in ("MxxA", "MxxB", "MxxC")
-    ]
-    case = family(system_from_file(folder / "herman.prism", decisions, [], folder / "herman.pctl"))
+    case = herman(foreign, "0..3")
     relaxed = RelaxedObjectives(case, build_quotient(case))
     r = relaxed.relaxation
     assert np.diff(r.state_decisions).max() > 1

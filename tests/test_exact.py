@@ -11,7 +11,7 @@ import json
 import attrs
 import numpy as np
 import pytest
-from test_bound import MIXED, TO_BROKEN, _families, _flip, dpm
+from test_bound import MIXED, TO_BROKEN, _families, _flip, dpm, herman
 from test_quotient import OBJECTIVES, breaking_system, synchronised_system
 from typer.testing import CliRunner
 
@@ -194,6 +194,23 @@ def test_stopped_early_on_a_model_we_did_not_write_the_bound_is_sound(foreign):
     finished = branch_and_bound(fam, quotient, evaluate)
     assert finished.exact
     _assert_same_front(finished.values, values, fam)
+
+
+@pytest.mark.parametrize("biases", ["0..2", "22..24"])
+def test_on_herman_the_front_is_enumerations(foreign, biases):
+    # PAYNT's herman, four coin biases of three values and three bits (648 policies): steps to
+    # stabilise (min) and stabilised within 30 steps (max), a reward and a bounded reach that
+    # the bounds combine. With biases from 0 some policies never stabilise (infinite steps);
+    # with the largest biases one policy is best in both (a front of one point), as in the
+    # whole family
+    fam = herman(foreign, biases)
+    quotient, evaluate = _solver(fam)
+    _, values = _enumerate(fam, evaluate)
+    if biases == "0..2":
+        assert np.isinf(values[:, 0]).any()
+    result = branch_and_bound(fam, quotient, evaluate, leaf=4, adaptive=False)
+    assert result.exact and result.evaluated < len(values)
+    _assert_same_front(result.values, values, fam)
 
 
 def test_an_open_nodes_staircase_covers_its_region_and_stays_in_its_box():

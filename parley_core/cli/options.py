@@ -97,7 +97,12 @@ BoundOption = Annotated[
 ]
 BoundTimeOption = Annotated[
     float,
-    typer.Option("--bound-time", min=0.001, help="With --bound refine: stop branch and bound after this many seconds."),
+    typer.Option(
+        "--bound-time",
+        min=0.001,
+        help="With --bound refine: stop branch and bound after this many seconds. With --bound belief: stop Storm's "
+        "belief exploration after this many seconds per objective (its MDP value stands then).",
+    ),
 ]
 VerifyWithOption = Annotated[
     str,
