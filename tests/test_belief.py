@@ -129,6 +129,17 @@ def test_a_run_with_the_belief_bound_says_so_and_holds_its_front(tmp_path):
     assert covered.any(axis=0).all()
 
 
+def test_bound_time_stops_storms_belief_exploration_in_a_run(tmp_path):
+    out = tmp_path / "run"
+    quick = ["--set", "size=3", "--set", "seed=2", "--set", "max_interval=4"]
+    result = CliRunner().invoke(app, ["run", "robot_grid", *quick, "--population", "10", "--generations", "3",
+                                      "--workers", "1", "--bound", "belief", "--bound-time", "0.001",
+                                      "--out", str(out)])  # fmt: skip
+    assert result.exit_code == 0, result.stderr
+    belief = json.loads((out / "summary.json").read_text())["optimality"]["belief"]
+    assert belief and all("did not finish in 0.001 s" in d["error"] for d in belief.values())
+
+
 def test_an_unknown_bound_is_one_line_and_status_2():
     result = CliRunner().invoke(app, ["run", "robot_grid", "--bound", "psychic"])
     assert result.exit_code == 2 and "belief" in result.stderr and "Traceback" not in result.stderr
