@@ -15,11 +15,11 @@ reachability rewards (``R [F psi]``) this way; every other objective keeps the M
 (:func:`parley_core.bound.ideal_point`). A step-bounded reward (``C<=k``: robot_grid's cost,
 every objective of web_ids and tas) would need the step counter unfolded into the POMDP.
 
-Storm's belief exploration has no time limit of its own, and it can run for minutes on a
-small model (the hand-written breaking model's ``R{"once"}=? [F broken]``: 2,180 states, no
-answer in 5 minutes) without answering Ctrl-C. Each query therefore runs in a process of its
-own, which is stopped after :data:`SECONDS` (or the caller's limit); the MDP's value stands
-for that objective, and the bound's details say so.
+Storm's belief exploration has no time limit of its own and does not answer Ctrl-C; on a
+small model it ran for minutes without a result (the hand-written breaking model's
+``R{"once"}=? [F broken]``, ``tests/test_quotient.py``). Each query therefore runs in a
+process of its own, stopped after :data:`SECONDS` (or the caller's limit); the MDP's value
+stands for that objective, and the bound's details say so.
 """
 
 from __future__ import annotations
