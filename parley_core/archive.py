@@ -113,3 +113,19 @@ def staircase(top: np.ndarray, weights: np.ndarray, levels: np.ndarray, steps: i
     heights = height(grid)
     # point i covers x in [grid[i-1], grid[i]] (the height does not increase); the first covers x <= left
     return np.vstack([[grid[0], top[1]], np.column_stack([grid[1:], heights[:-1]])])
+
+
+OPEN_STEPS = 16
+"""Points of the staircase that covers a sub-family left open (two objectives) in a bound."""
+
+
+def region_points(ideal: np.ndarray, cuts: tuple[tuple[np.ndarray, float], ...]) -> np.ndarray:
+    """Points (sign space) whose orthants cover a bounded sub-family's region (its ideal box
+    and the half-spaces ``cuts``, each weights and level): for two objectives the staircase
+    over both, else the ideal point."""
+    usable = [(w, c) for w, c in cuts if np.isfinite(c) and (np.asarray(w) > 0).all()]
+    if len(ideal) == 2 and usable and (ideal > FLOOR).all() and np.isfinite(ideal).all():
+        weights = np.array([w for w, _ in usable], dtype=float)
+        levels = np.array([c for _, c in usable], dtype=float)
+        return staircase(ideal, weights, levels, OPEN_STEPS)
+    return np.where(ideal <= FLOOR, -np.inf, ideal)[None, :]

@@ -21,9 +21,10 @@ processes), and are solved there while the next nodes are bounded here: a node i
 against the values found so far, which is sound whatever is still pending. Until the first
 leaf is evaluated the nodes are taken depth first, so that the adaptive leaf size is known
 before the family is cut finer than it needs. When no node is left, the archive's
-non-dominated values are the whole Pareto front (as a set of values); with a time limit the
-open nodes' regions (for two objectives a staircase over each one's box and half-spaces)
-join the front in the bound.
+non-dominated values are the whole Pareto front (as a set of values); with a time limit, or
+on Ctrl-C, the open nodes' regions (for two objectives a staircase over each one's box and
+half-spaces) join the front in the bound. A batch that Ctrl-C cut short (the workers take it
+too) puts the nodes its boxes came from back among the open ones, with their parents' bounds.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from collections.abc import Callable
 import numpy as np
 from attrs import field, frozen
 
-from parley_core.archive import Archive, depth, robust_front, staircase
+from parley_core.archive import Archive, depth, region_points, robust_front
 from parley_core.boxes import FLOOR, Box, BoxValues, Pending, Ready, box_rows, local_front
 from parley_core.model import Family
 from parley_core.quotient.bounds import RelaxedObjectives
@@ -68,21 +69,6 @@ SMALLEST_BATCH = 64
 IN_FLIGHT = 2
 """Batches an evaluator may be solving while nodes are bounded: the workers always have the
 next batch when they finish one."""
-OPEN_STEPS = 16
-"""Points of the staircase that covers a node left open (two objectives) in the bound."""
-
-
-def region_points(node: Node) -> np.ndarray:
-    """Points (sign space) whose orthants cover a bounded node's region: for two objectives
-    the staircase over its ideal box and half-spaces, else its ideal point."""
-    assert node.ideal is not None
-    ideal = node.ideal
-    cuts = [(w, c) for w, c in node.cuts if np.isfinite(c) and (np.asarray(w) > 0).all()]
-    if len(ideal) == 2 and cuts and (ideal > FLOOR).all() and np.isfinite(ideal).all():
-        weights = np.array([w for w, _ in cuts], dtype=float)
-        levels = np.array([c for _, c in cuts], dtype=float)
-        return staircase(ideal, weights, levels, OPEN_STEPS)
-    return np.where(ideal <= FLOOR, -np.inf, ideal)[None, :]
 
 
 class Tried:
@@ -180,9 +166,13 @@ def branch_and_bound(
                 covered[lo : lo + 256] = (archive.points[None, :, :] >= part[:, None, :]).all(axis=2).any(axis=1)
             rows, values = rows[~covered], values[~covered]
         for row, value in zip(rows, values):
-            if archive.add(value * signs):
-                kept_rows.append(row)
-                kept_values.append(value)
+            # kept before the archive takes it: a Ctrl-C in between leaves no archived value
+            # without its policy (the archive's values decide what was pruned)
+            kept_rows.append(row)
+            kept_values.append(value)
+            if not archive.add(value * signs):
+                kept_rows.pop()
+                kept_values.pop()
 
     if seeds is not None and len(seeds[0]):
         admit(*seeds)
@@ -193,6 +183,9 @@ def branch_and_bound(
     scale = np.ones(len(signs))
     counter = itertools.count(1)
     pending: list[Box] = []
+    # per pending box the node it covers (None: a tried policy, also inside a node of its own),
+    # so that a batch lost to Ctrl-C goes back on the stack with that node's bound
+    covering: list[Node | None] = []
     nodes = pruned = evaluated = unknown = 0
     stopped_by = "complete"
 
@@ -205,7 +198,7 @@ def branch_and_bound(
         per_policy = max(spent["policy"] / spent["policies"], 1e-9)
         return max(leaf, min(LARGEST_LEAF, int(LEAF_COST * per_bound / per_policy)))
 
-    inflight: deque[Pending] = deque()
+    inflight: deque[tuple[Pending, list[Node | None]]] = deque()
 
     def batch_limit() -> int:
         most = BATCH if fronts is None else BOX_BATCH
@@ -225,33 +218,41 @@ def branch_and_bound(
         unknown += int(np.isnan(values).any(axis=1).sum())
         admit(batch.rows, values)
 
+    def settle() -> None:
+        # the oldest batch leaves the queue once its values are in: one that Ctrl-C cut short
+        # is still there for the interrupted search to open its nodes again
+        take(inflight[0][0].result())
+        inflight.popleft()
+
     def harvest(wait: bool) -> None:
         # in the order submitted, so that of equal values the archive keeps the same policy
-        while inflight and (wait or inflight[0].done()):
-            take(inflight.popleft().result())
+        while inflight and (wait or inflight[0][0].done()):
+            settle()
 
     def flush() -> None:
         if not pending:
             return
         if fronts is not None:
-            inflight.append(fronts(list(pending), signs))
+            inflight.append((fronts(list(pending), signs), list(covering)))
         else:
             began = time.perf_counter()
             rows = np.vstack([box_rows(box, domains) for box in pending])
             values = np.asarray(evaluate(rows), dtype=float).reshape(len(rows), len(signs))
             seconds = time.perf_counter() - began
-            inflight.append(Ready(BoxValues(rows=rows, values=values, evaluated=len(rows), seconds=seconds)))
+            inflight.append((Ready(BoxValues(rows=rows, values=values, evaluated=len(rows), seconds=seconds)), []))
         pending.clear()
+        covering.clear()
         spent["pending"] = 0
         # the first batch is waited for: its time is what the adaptive leaf size is measured by
         if not spent["policies"]:
             harvest(wait=True)
         while len(inflight) > IN_FLIGHT:
-            take(inflight.popleft().result())
+            settle()
 
-    def queue(lo: np.ndarray, hi: np.ndarray) -> None:
+    def queue(lo: np.ndarray, hi: np.ndarray, node: Node | None) -> None:
         box = Box(lo, hi)
         pending.append(box)
+        covering.append(node)
         spent["pending"] += box.size
         # the first box goes at once: its time is what the adaptive leaf size is measured by
         if not spent["policies"] or spent["pending"] >= batch_limit():
@@ -264,92 +265,111 @@ def branch_and_bound(
             elapsed = (time.perf_counter() - start) / time_limit if time_limit else 0.0
             progress(max(resolved / total, min(1.0, elapsed)))
 
-    while stack:
-        if time_limit is not None and time.perf_counter() - start > time_limit:
-            stopped_by = "time"
-            break
-        harvest(wait=False)
-        if fronts is not None and not inflight:  # the evaluator is idle: it gets what is pending
-            flush()
-        _, _, node = heapq.heappop(stack)
-        nodes += 1
-        share = node.size()
-        if node.ideal is not None and not len(archive.open_corners(node.ideal, list(node.cuts))):
-            pruned += 1
-            resolve(share)
-            continue
-        view = bounds.restrict(node.lo, node.hi)
-        consulted = bounds.consulted(view)
-        lo, hi = node.lo.copy(), node.hi.copy()
-        hi[~consulted] = lo[~consulted]
-        width = hi - lo + 1
-        if math.prod(int(w) for w in width) <= leaf_size():
-            queue(lo, hi)
-            resolve(share)
-            continue
-        began = time.perf_counter()
-        ideal = np.maximum(bounds.ideal(view), FLOOR)
-        if node.ideal is not None:
-            ideal = np.minimum(ideal, node.ideal)
-        else:  # the root: scale distances by the family's extent
-            spread = ideal - archive.points.min(axis=0) if len(archive.points) else np.ones(len(signs))
-            scale = np.where(np.isfinite(spread) & (spread > 0), spread, 1.0)
-        cuts = list(node.cuts)
-        corners = archive.open_corners(ideal, cuts)
-        for _ in range(CUTS if bounds.combines else 0):
-            if not len(corners):
+    working: Node | None = None  # popped, and not yet pruned, queued or split
+    try:
+        while stack:
+            working = None
+            if time_limit is not None and time.perf_counter() - start > time_limit:
+                stopped_by = "time"
                 break
-            gaps = ideal[None, :] - corners
-            if not np.isfinite(gaps).all(axis=1).any():
-                break
-            corner = corners[np.argmax(np.where(np.isfinite(gaps), gaps, -np.inf).min(axis=1))]
-            weights = 1.0 / np.maximum(ideal - corner, 1e-12)
-            weights /= weights.max()
-            cuts.append((weights, float(bounds.weighted(view, weights)[0])))
+            harvest(wait=False)
+            if fronts is not None and not inflight:  # the evaluator is idle: it gets what is pending
+                flush()
+            _, _, node = heapq.heappop(stack)
+            working = node
+            nodes += 1
+            share = node.size()
+            if node.ideal is not None and not len(archive.open_corners(node.ideal, list(node.cuts))):
+                pruned += 1
+                resolve(share)
+                continue
+            view = bounds.restrict(node.lo, node.hi)
+            consulted = bounds.consulted(view)
+            lo, hi = node.lo.copy(), node.hi.copy()
+            hi[~consulted] = lo[~consulted]
+            width = hi - lo + 1
+            if math.prod(int(w) for w in width) <= leaf_size():
+                queue(lo, hi, node)
+                resolve(share)
+                continue
+            began = time.perf_counter()
+            ideal = np.maximum(bounds.ideal(view), FLOOR)
+            if node.ideal is not None:
+                ideal = np.minimum(ideal, node.ideal)
+            else:  # the root: scale distances by the family's extent
+                spread = ideal - archive.points.min(axis=0) if len(archive.points) else np.ones(len(signs))
+                scale = np.where(np.isfinite(spread) & (spread > 0), spread, 1.0)
+            cuts = list(node.cuts)
             corners = archive.open_corners(ideal, cuts)
-        spent["bound"] += time.perf_counter() - began
-        spent["bounds"] += 1
-        if not len(corners):
-            pruned += 1
-            resolve(share)
-            continue
-        # where the bounds' schedulers are known, each is tried as a policy (by the value each
-        # decision takes in most states: where they agree, it is the policy that attains the
-        # bound) and the node is split in the decision they disagree on most, between the two
-        # values taken most, as PAYNT's abstraction refinement does; else in the widest
-        # consulted decision (with ``whole``, the widest but one)
-        votes = [bounds.votes(view, actions) for actions in view.schedulers]
-        for vote in votes:
-            choice = np.where(vote.sum(axis=1) > 0, vote.argmax(axis=1), lo)
-            if tried.add(choice):
-                queue(choice, choice.copy())
-        spans = np.where(consulted, width, 0)
-        split = None
-        if votes:
-            tally = np.sum(votes, axis=0)
-            disagreement = np.where(spans > 1, tally.sum(axis=1) - tally.max(axis=1), 0)
-            if disagreement.max() > 0:
-                split = d = int(np.argmax(disagreement))
-                first, second = np.argsort(-tally[d], kind="stable")[:2]
-                middle = int(min(max(min(first, second), lo[d]), hi[d] - 1))
-        if split is None:
-            d = int(np.argmax(spans))
-            if whole:
-                spans[d] = 0
-                if spans.max() > 1:
-                    d = int(np.argmax(spans))
-            middle = (lo[d] + hi[d]) // 2
-        upper_lo, lower_hi = lo.copy(), hi.copy()
-        upper_lo[d], lower_hi[d] = middle + 1, middle
-        resolve(share - math.prod(int(w) for w in width))  # what collapsed decisions repeat
-        # until a first leaf is evaluated, depth first: its time sets the adaptive leaf size
-        # (nodes bounded best first before that would be split far finer than they need,
-        # while the workers wait); of equal priorities the latest first
-        priority = -depth(ideal, corners, scale) if spent["policies"] else -math.inf
-        heapq.heappush(stack, (priority, -next(counter), Node(upper_lo, hi, ideal, tuple(cuts))))
-        heapq.heappush(stack, (priority, -next(counter), Node(lo, lower_hi, ideal, tuple(cuts))))
-    flush()
-    harvest(wait=True)
+            for _ in range(CUTS if bounds.combines else 0):
+                if not len(corners):
+                    break
+                gaps = ideal[None, :] - corners
+                if not np.isfinite(gaps).all(axis=1).any():
+                    break
+                corner = corners[np.argmax(np.where(np.isfinite(gaps), gaps, -np.inf).min(axis=1))]
+                weights = 1.0 / np.maximum(ideal - corner, 1e-12)
+                weights /= weights.max()
+                cuts.append((weights, float(bounds.weighted(view, weights)[0])))
+                corners = archive.open_corners(ideal, cuts)
+            spent["bound"] += time.perf_counter() - began
+            spent["bounds"] += 1
+            if not len(corners):
+                pruned += 1
+                resolve(share)
+                continue
+            # where the bounds' schedulers are known, each is tried as a policy (by the value each
+            # decision takes in most states: where they agree, it is the policy that attains the
+            # bound) and the node is split in the decision they disagree on most, between the two
+            # values taken most, as PAYNT's abstraction refinement does; else in the widest
+            # consulted decision (with ``whole``, the widest but one)
+            votes = [bounds.votes(view, actions) for actions in view.schedulers]
+            for vote in votes:
+                choice = np.where(vote.sum(axis=1) > 0, vote.argmax(axis=1), lo)
+                if tried.add(choice):
+                    queue(choice, choice.copy(), None)
+            spans = np.where(consulted, width, 0)
+            split = None
+            if votes:
+                tally = np.sum(votes, axis=0)
+                disagreement = np.where(spans > 1, tally.sum(axis=1) - tally.max(axis=1), 0)
+                if disagreement.max() > 0:
+                    split = d = int(np.argmax(disagreement))
+                    first, second = np.argsort(-tally[d], kind="stable")[:2]
+                    middle = int(min(max(min(first, second), lo[d]), hi[d] - 1))
+            if split is None:
+                d = int(np.argmax(spans))
+                if whole:
+                    spans[d] = 0
+                    if spans.max() > 1:
+                        d = int(np.argmax(spans))
+                middle = (lo[d] + hi[d]) // 2
+            upper_lo, lower_hi = lo.copy(), hi.copy()
+            upper_lo[d], lower_hi[d] = middle + 1, middle
+            resolve(share - math.prod(int(w) for w in width))  # what collapsed decisions repeat
+            # until a first leaf is evaluated, depth first: its time sets the adaptive leaf size
+            # (nodes bounded best first before that would be split far finer than they need,
+            # while the workers wait); of equal priorities the latest first
+            priority = -depth(ideal, corners, scale) if spent["policies"] else -math.inf
+            heapq.heappush(stack, (priority, -next(counter), Node(upper_lo, hi, ideal, tuple(cuts))))
+            heapq.heappush(stack, (priority, -next(counter), Node(lo, lower_hi, ideal, tuple(cuts))))
+        working = None
+        flush()
+        harvest(wait=True)
+    except KeyboardInterrupt:  # Ctrl-C: the front and the bound so far, as with a time limit
+        stopped_by = "interrupted"
+        if working is not None:
+            stack.append((0.0, -next(counter), working))
+        lost = [n for n in covering if n is not None]
+        for batch, nodes_of in inflight:
+            try:
+                take(batch.result())
+            except BaseException:  # the workers took the Ctrl-C too: their boxes are open again
+                lost.extend(n for n in nodes_of if n is not None)
+        inflight.clear()
+        pending.clear()
+        covering.clear()
+        stack.extend((0.0, -next(counter), n) for n in lost)
     rows = np.array(kept_rows, dtype=np.int64).reshape(-1, len(domains))
     values = np.array(kept_values, dtype=float).reshape(-1, len(signs))
     # the archive drops what a later value dominates: keep the policies whose value it still holds
@@ -357,7 +377,7 @@ def branch_and_bound(
     rows, values = rows[alive.reshape(-1)], values[alive.reshape(-1)]
     kept = robust_front(values * signs)
     rows, values = rows[kept], values[kept]
-    open_points = [region_points(n) * signs for _, _, n in stack if n.ideal is not None]
+    open_points = [region_points(n.ideal, n.cuts) * signs for _, _, n in stack if n.ideal is not None]
     if any(n.ideal is None for _, _, n in stack):
         everything = bounds.restrict(np.zeros(len(domains), dtype=np.int64), bounds.sizes - 1)
         open_points.append(bounds.ideal(everything) * signs)

@@ -248,6 +248,8 @@ def run(
                 cheap = run_bounds.outer(family, engine, "pareto")
                 outer = cheap[0]
                 refined, searched_values = run_bounds.refine(family, engine, result, bound_time, reporter, cheap)
+            if refined.stopped_by == "interrupted":
+                reporter.note("branch and bound interrupted; writing the front and the bound so far")
     except BaseException:
         engine.close(abort=True)
         raise

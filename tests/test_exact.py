@@ -16,12 +16,12 @@ from test_quotient import OBJECTIVES, breaking_system, synchronised_system
 from typer.testing import CliRunner
 
 from parley_core import metrics
-from parley_core.archive import Archive, robust_front
+from parley_core.archive import Archive, region_points, robust_front
 from parley_core.bound import refined_bound
 from parley_core.boxes import Box, box_rows, local_front
 from parley_core.cli import app
 from parley_core.evaluate.quotient import QuotientEvaluator
-from parley_core.exact import Node, branch_and_bound, region_points
+from parley_core.exact import branch_and_bound
 from parley_core.pipeline import make_family
 from parley_core.quotient.coloring import build_quotient
 from parley_core.quotient.solver import QuotientSolver
@@ -213,11 +213,69 @@ def test_on_herman_the_front_is_enumerations(foreign, biases):
     _assert_same_front(result.values, values, fam)
 
 
+@pytest.mark.parametrize("after", [1, 5, 40, 200])
+def test_ctrl_c_leaves_the_front_so_far_and_a_sound_bound(after):
+    # Ctrl-C at the ``after``-th node settled (raised from the progress callback, between any
+    # two steps of the search): the front so far, and a bound that still holds every policy
+    fam = narrow("web_ids", ["rounds=6"], 3)
+    quotient, evaluate = _solver(fam)
+    _, values = _enumerate(fam, evaluate)
+    calls = itertools.count(1)
+
+    def progress(_fraction):
+        if next(calls) == after:
+            raise KeyboardInterrupt
+
+    result = branch_and_bound(fam, quotient, evaluate, leaf=4, adaptive=False, progress=progress)
+    assert result.stopped_by == "interrupted" and not result.exact and result.open > 0
+    if len(result.policies):
+        np.testing.assert_allclose(evaluate(result.policies), result.values, rtol=1e-12, atol=1e-15)
+    assert refined_bound(fam, result).dominates(values).all()
+
+
+@pytest.mark.parametrize("lost", ["first", "second", "last"])
+def test_ctrl_c_in_the_workers_puts_their_boxes_back_among_the_open(lost):
+    # one batch of boxes fails as the workers' Ctrl-C does: its policies are not in the front,
+    # so the nodes its boxes came from must be open again for the bound to hold them. The last
+    # batch is solved when no node is left on the stack: only the reopened nodes cover it
+    from parley_core.boxes import BoxValues, Ready
+
+    fam = narrow("web_ids", ["rounds=6"], 3)
+    quotient, evaluate = _solver(fam)
+    _, values = _enumerate(fam, evaluate)
+    domains = [np.array(d.service.values, dtype=np.int64) for d in fam.decisions]
+
+    class Interrupted:
+        def done(self):
+            return True
+
+        def result(self):
+            raise KeyboardInterrupt
+
+    def search(failing):
+        batches = itertools.count(1)
+
+        def fronts(boxes, signs):
+            if next(batches) == failing:
+                return Interrupted()
+            rows = np.vstack([box_rows(b, domains) for b in boxes])
+            return Ready(BoxValues(rows=rows, values=evaluate(rows), evaluated=len(rows), seconds=1e-3))
+
+        result = branch_and_bound(fam, quotient, evaluate, leaf=16, adaptive=False, fronts=fronts)
+        return result, next(batches) - 1
+
+    _, total = search(failing=0)
+    assert total >= 3
+    result, _ = search(failing={"first": 1, "second": 2, "last": total}[lost])
+    assert result.stopped_by == "interrupted" and not result.exact and result.open > 0
+    assert refined_bound(fam, result).dominates(values).all()
+
+
 def test_an_open_nodes_staircase_covers_its_region_and_stays_in_its_box():
     rng = np.random.default_rng(4)
     ideal = np.array([-1.0, 2.0])
     cuts = ((np.array([1.0, 1.0]), 0.5), (np.array([0.2, 1.0]), 1.2))
-    points = region_points(Node(np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), ideal, cuts))
+    points = region_points(ideal, cuts)
     assert len(points) > 2 and (points <= ideal + 1e-12).all()
     sample = ideal - rng.uniform(0, 6, size=(4000, 2))
     inside = sample[np.all([sample @ w <= c for w, c in cuts], axis=0)]

@@ -197,6 +197,10 @@ def synthesize_command(
     )
 
 
+def _stopped(by: str) -> str:
+    return "interrupted (Ctrl-C)" if by == "interrupted" else f"stopped by {by}"
+
+
 def _synthesize(make, warm_start: Path | None = None) -> None:
     """Make a run with ``make(reporter)`` (the API's ``run``, ``exact`` or ``synthesize``)
     under progress bars, then print it."""
@@ -246,7 +250,7 @@ def _synthesize(make, warm_start: Path | None = None) -> None:
         details = optimality.get("search")
         if details:
             console.print(
-                f"branch and bound stopped by {details['stopped_by']} after {details['nodes']} nodes "
+                f"branch and bound {_stopped(details['stopped_by'])} after {details['nodes']} nodes "
                 f"({details['pruned']} pruned, {details['evaluated']} policies evaluated, {details['open']} open)"
             )
         console.print(
