@@ -105,6 +105,20 @@ def test_synthesize_runs_the_pipeline_on_a_user_model(files):
         assert [float(values["cost"]), float(values["degraded"])] == pytest.approx(expected, rel=1e-6, abs=1e-7)
 
 
+def test_synthesize_exact_proves_the_whole_front_and_refuses_another_bound(files):
+    out = files / "run"
+    common = [files / "server.prism", "--props", files / "server.pctl", "--decision", "c=1..3",
+              "--observe", "phase", "--population", "10", "--generations", "2", "--workers", "1"]  # fmt: skip
+    result = invoke("synthesize", *common, "--exact", "--out", out)
+    assert result.exit_code == 0, result.stderr
+    optimality = json.loads((out / "summary.json").read_text())["optimality"]
+    assert optimality["exact"] and optimality["search"]["stopped_by"] == "complete"
+    assert "exact: the front is the family's whole Pareto front" in result.stdout
+    refused = invoke("synthesize", *common, "--exact", "--bound", "belief", "--out", files / "other")
+    assert refused.exit_code == 2 and "--exact" in refused.stderr and "Traceback" not in refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1
+
+
 def test_constraints_keep_only_policies_that_meet_them(files):
     out = files / "run"
     result = invoke(

@@ -95,13 +95,24 @@ BoundOption = Annotated[
         "it finishes); none: skip it.",
     ),
 ]
+BOUND_SECONDS = 60.0
+"""--bound-time when it is not given (and no --exact asks for no limit)."""
 BoundTimeOption = Annotated[
-    float,
+    float | None,
     typer.Option(
         "--bound-time",
         min=0.001,
-        help="With --bound refine: stop branch and bound after this many seconds. With --bound belief: stop Storm's "
-        "belief exploration after this many seconds per objective (its MDP value stands then).",
+        help="With --bound refine: stop branch and bound after this many seconds (default 60; with --exact, no "
+        "limit). With --bound belief: stop Storm's belief exploration after this many seconds per objective (default "
+        "60; its MDP value stands then).",
+    ),
+]
+ExactOption = Annotated[
+    bool,
+    typer.Option(
+        "--exact",
+        help="Branch and bound until the front is proven the family's whole Pareto front (--bound refine without a "
+        "time limit, unless --bound-time gives one; Ctrl-C stops it with the front and bound so far).",
     ),
 ]
 VerifyWithOption = Annotated[

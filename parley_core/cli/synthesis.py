@@ -14,6 +14,7 @@ from parley_core.cli.common import user_errors
 from parley_core.cli.console import RichReporter, fmt, front_table, stderr
 from parley_core.cli.options import (
     ALGORITHM,
+    BOUND_SECONDS,
     POPULATION,
     SEED,
     AlgorithmOption,
@@ -23,6 +24,7 @@ from parley_core.cli.options import (
     ConstraintOption,
     DecisionOption,
     EvaluatorOption,
+    ExactOption,
     ForceOption,
     GenerationsOption,
     MaxEvaluationsOption,
@@ -58,7 +60,7 @@ def run_command(
     constraint: ConstraintOption = None,
     workers: WorkersOption = None,
     bound: BoundOption = "pareto",
-    bound_time: BoundTimeOption = 60.0,
+    bound_time: BoundTimeOption = None,
     verify_with: VerifyWithOption = "batch",
     scenarios: ScenariosOption = None,
     warm_start: WarmStartOption = None,
@@ -81,7 +83,7 @@ def run_command(
             evaluator=evaluator,
             workers=workers,
             bound=bound,
-            bound_time=bound_time,
+            bound_time=BOUND_SECONDS if bound_time is None else bound_time,
             verify_with=verify_with,
             scenarios=scenarios,
             warm_start=warm_start,
@@ -159,13 +161,21 @@ def synthesize_command(
     evaluator: EvaluatorOption = EvaluatorKind.QUOTIENT.value,
     workers: WorkersOption = None,
     bound: BoundOption = "pareto",
-    bound_time: BoundTimeOption = 60.0,
+    bound_time: BoundTimeOption = None,
+    exact: ExactOption = False,
     verify_with: VerifyWithOption = "batch",
     scenarios: ScenariosOption = None,
     warm_start: WarmStartOption = None,
 ) -> None:
-    """Synthesize a URC for your own PRISM model: the same pipeline and run directory as `parley run`."""
+    """Synthesize a URC for your own PRISM model: the same pipeline and run directory as `parley run`
+    (with --exact, the family's whole Pareto front, as `parley exact` gives a case study's)."""
     from parley_core.api.commands import synthesize
+
+    if exact and bound not in ("pareto", "refine"):
+        raise OptionError(f"--exact runs branch and bound (--bound refine); it takes no --bound {bound}")
+    if exact:
+        bound = "refine"
+    seconds = bound_time if bound_time is not None else None if exact else BOUND_SECONDS
 
     _synthesize(
         lambda reporter: synthesize(
@@ -185,7 +195,7 @@ def synthesize_command(
             evaluator=evaluator,
             workers=workers,
             bound=bound,
-            bound_time=bound_time,
+            bound_time=seconds,
             verify_with=verify_with,
             scenarios=scenarios,
             warm_start=warm_start,
