@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-from attrs import evolve, field, frozen
+from attrs import field, frozen
 
 from parley_core import metrics
 from parley_core.archive import staircase
@@ -257,10 +257,13 @@ def pareto_outer(
     weights = np.column_stack([np.cos(angles) / span[0], np.sin(angles) / span[1]])
     # a scheduler that attains the whole ideal point (herman's: fewest steps and likeliest to
     # stabilise in 30 at once) leaves every weighted sum at the ideal's: one balanced sum shows it
-    middle = weights[len(weights) // 2]
-    if bounds.weighted(view, middle[None, :])[0] >= middle @ top - ATTAINED * (1.0 + abs(middle @ top)):
-        return evolve(ideal, seconds=ideal.seconds + time.perf_counter() - start)
-    levels = bounds.weighted(view, weights)
+    middle = len(weights) // 2
+    levels = np.empty(len(weights))
+    levels[middle] = bounds.weighted(view, weights[middle : middle + 1])[0]
+    if levels[middle] >= weights[middle] @ top - ATTAINED * (1.0 + abs(weights[middle] @ top)):
+        return ideal
+    others = np.arange(len(weights)) != middle
+    levels[others] = bounds.weighted(view, weights[others])
     finite = np.isfinite(levels)
     weights, levels = weights[finite], levels[finite]
     if not len(levels):

@@ -119,6 +119,17 @@ def test_synthesize_exact_proves_the_whole_front_and_refuses_another_bound(files
     assert len(refused.stderr.strip().splitlines()) == 1
 
 
+def test_exact_has_no_time_limit_unless_bound_time_gives_one(files, monkeypatch):
+    import parley_core.api.commands as commands
+
+    asked = []
+    monkeypatch.setattr(commands, "synthesize", lambda *args, **kw: asked.append((kw["bound"], kw["bound_time"])))
+    common = [files / "server.prism", "--props", files / "server.pctl", "--decision", "c=1..3"]
+    for extra in (["--exact"], ["--exact", "--bound-time", "5"], [], ["--bound", "refine"]):
+        invoke("synthesize", *common, *extra)
+    assert asked == [("refine", None), ("refine", 5.0), ("pareto", 60.0), ("refine", 60.0)]
+
+
 def test_constraints_keep_only_policies_that_meet_them(files):
     out = files / "run"
     result = invoke(

@@ -92,7 +92,7 @@ class RelaxedObjectives:
         )
         # or minimised expected rewards that all stop at the same target (or none): their weighted
         # sum is one expected reward, bounded from below like each of them
-        reward_kinds = {kind for kind in kinds}
+        reward_kinds = set(kinds)
         self.summed_ok = (
             all(self.supported)
             and len(reward_kinds) == 1
@@ -198,14 +198,14 @@ class RelaxedObjectives:
         """Per row of ``weights`` (>= 0) a sound upper bound of ``sum_i w_i * sign_i * value_i``
         over the sub-family; infinity where the objectives do not combine."""
         weights = np.atleast_2d(weights)
-        if self.summed_ok and not self.weighted_ok:
-            values = self._summed(view, weights)
-        elif self.mixed_ok and not self.weighted_ok:
-            values = self._mixed(view, weights)
-        elif not self.weighted_ok:
-            return np.full(len(weights), np.inf)
-        else:
+        if self.weighted_ok:
             values = self._horizon(view, weights, self.until)
+        elif self.summed_ok:
+            values = self._summed(view, weights)
+        elif self.mixed_ok:
+            values = self._mixed(view, weights)
+        else:
+            return np.full(len(weights), np.inf)
         return values + WIDEN * np.abs(weights).sum(axis=1) * np.maximum(1.0, np.abs(values))
 
     def _summed(self, view: Restricted, weights: np.ndarray) -> np.ndarray:
