@@ -183,3 +183,27 @@ def test_policy_programs_agree_with_the_augmented_model(foreign, spec, tmp_path)
         batch, single = fast.evaluate(rows), reference.evaluate(rows)
     _, relative = differences(batch, single)
     assert relative.max() <= 1e-12, f"{spec.folder}/{spec.model}: {batch.tolist()} against {single.tolist()}"
+
+
+def test_on_dpm_both_rewards_share_one_direct_solve(foreign, monkeypatch):
+    # PAYNT's dpm mixes slowly (its battery runs out with probability 0.01 a step): the sweeps
+    # give up early and both expected rewards (power, lostH: one target) are solved with one
+    # LU factorization a policy, and still agree with Storm
+    from test_bound import dpm
+
+    from parley_core.quotient import solver as module
+    from parley_core.quotient.coloring import build_quotient
+
+    fam = dpm(foreign, free=3)
+    factorizations = []
+    real = module.splu
+    monkeypatch.setattr(module, "splu", lambda matrix: factorizations.append(matrix.shape) or real(matrix))
+    solver = module.QuotientSolver(build_quotient(fam))
+    rows = np.array([[a, b, c] + [1] * 13 for a in range(3) for b in range(3) for c in range(3)], dtype=np.int64)
+    fast = np.array([solver.solve(row) for row in rows], dtype=float)
+    assert len(factorizations) == len(rows) and solver.direct_solves == 2 * len(rows)
+    assert solver.last_sweeps == -1 and solver.uncertified == 0
+    # the lumped equations leave out the states that only pass on (tick1's choice)
+    assert max(n for n, _ in factorizations) < solver.last_states
+    _, relative = differences(fast, values(fam, rows))
+    assert relative.max() <= TOLERANCE

@@ -173,3 +173,72 @@ def test_lumping_chains_of_single_transitions_keeps_the_solution(seed):
         expected = np.zeros(count)
         expected[idx] = np.linalg.solve(np.eye(len(idx)) - matrix[np.ix_(idx, idx)], reward[idx])
         assert np.allclose(x[~passed], expected[~passed], rtol=1e-9, atol=1e-10)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 4, 6, 7, 9, 10, 13, 14, 15, 16, 17])  # those with 60 states or more
+def test_the_lumped_equations_solved_directly_are_the_solution(seed):
+    # what the direct solve factors: I - P on the unknowns of the lumped equations, with the
+    # other states' values (targets) moved to the right-hand side
+    indptr, cols, vals, levels = random_dtmc(seed, n=200, single=0.3)
+    count = len(levels)
+    rng = np.random.default_rng(5000 + seed)
+    matrix = dense(indptr, cols, vals)
+    right = rng.random(count) < 0.3
+    free = ~right & reaches(matrix, right, np.ones(count, bool))
+    through = kernels.pass_through(count, indptr, cols, vals, ~free, count)
+    reward = rng.random(count) * free
+    x = np.where(right, 1.0, 0.0)  # probabilities plus rewards: a target is worth 1
+    lumped = kernels.lump(count, indptr, cols, vals, through, reward)
+    idx = np.flatnonzero(free & (through < 0))
+    assert len(idx) > 1
+    data, indices, pointers, rhs = kernels.equations(*lumped[:3], idx, x, lumped[3])
+    system = np.zeros((len(idx), len(idx)))
+    for i in range(len(idx)):
+        assert indices[pointers[i]] == i  # the diagonal first
+        for e in range(pointers[i], pointers[i + 1]):
+            system[i, indices[e]] += data[e]
+    unknown = np.flatnonzero(free)
+    expected = x.copy()
+    expected[unknown] = np.linalg.solve(
+        np.eye(len(unknown)) - matrix[np.ix_(unknown, unknown)],
+        reward[unknown] + matrix[np.ix_(unknown, np.flatnonzero(~free))] @ x[~free],
+    )
+    assert np.allclose(np.linalg.solve(system, rhs), expected[idx], rtol=1e-9, atol=1e-10)
+
+
+def _loop(stay: float):
+    """One state that stays with probability ``stay`` and otherwise reaches an absorbing target."""
+    indptr = np.array([0, 2, 3], dtype=np.int64)
+    cols = np.array([0, 1, 1], dtype=np.int64)
+    vals = np.array([stay, 1.0 - stay, 1.0])
+    return indptr, cols, vals
+
+
+def _two_states(stay: float):
+    """Two states that pass to each other (the self-loop trick cannot solve them at once)."""
+    indptr = np.array([0, 2, 4, 5], dtype=np.int64)
+    cols = np.array([1, 2, 0, 2, 2], dtype=np.int64)
+    vals = np.array([stay, 1.0 - stay, stay, 1.0 - stay, 1.0])
+    return indptr, cols, vals
+
+
+def test_gauss_seidel_gives_up_early_on_a_slowly_mixing_chain_only_when_asked():
+    indptr, cols, vals = _two_states(0.999)
+    rows = np.array([1, 0], dtype=np.int64)
+    constant = np.array([1.0, 1.0, 0.0])
+    patient, hasty = np.zeros(3), np.zeros(3)
+    assert kernels.gauss_seidel(indptr, cols, vals, rows, patient, constant, 1e-12, 100) == -1
+    assert kernels.gauss_seidel(indptr, cols, vals, rows, hasty, constant, 1e-12, 100, True) == -1
+    # iterated from 0 the values only grow: the hasty one stopped after far fewer sweeps
+    assert hasty[0] < 0.2 * patient[0]
+    # a chain that converges in time converges the same either way
+    indptr, cols, vals = _two_states(0.5)
+    for give_up in (False, True):
+        x = np.zeros(3)
+        assert 0 < kernels.gauss_seidel(indptr, cols, vals, rows, x, constant, 1e-12, 100, give_up) <= 100
+        assert x[0] == pytest.approx(2.0, rel=1e-11)
+    # one that converges slowly but within the sweeps given is not given up
+    indptr, cols, vals = _two_states(0.8)
+    x = np.zeros(3)
+    used = kernels.gauss_seidel(indptr, cols, vals, rows, x, constant, 1e-12, 400, True)
+    assert used > kernels.FIRST_GUESS and x[0] == pytest.approx(5.0, rel=1e-10)

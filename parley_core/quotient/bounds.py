@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from parley_core.model import Direction, Family
+from parley_core.quotient import kernels as kq
 from parley_core.quotient import subfamily as k
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.compile import KernelKind
@@ -328,32 +329,47 @@ class RelaxedObjectives:
                                reward, values, current, guess is None)[states]  # fmt: skip
             if (actions < 0).any() or (chosen is not None and (actions == chosen).all()):
                 break
-            starts, ends = r.action_entries[actions], r.action_entries[actions + 1]
-            counts = ends - starts
-            entries = np.repeat(starts - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
-            rows = np.repeat(np.arange(len(states)), counts)
-            columns = index[r.targets[entries]]
-            inside = columns >= 0
-            matrix = sp.csr_matrix(
-                (r.probabilities[entries][inside], (rows[inside], columns[inside])), shape=(len(states),) * 2
+            # the chosen actions' equations, with the states that only pass on (one transition,
+            # probability 1: dpm's tick1, half its states) substituted away before the solve
+            rows, columns, weights = kq.chosen_rows(actions, r.action_entries, r.targets, r.probabilities, index)
+            through = kq.pass_through(len(states), rows, columns, weights, np.zeros(len(states), dtype=bool),
+                                      len(states))  # fmt: skip
+            equations = kq.lump(len(states), rows, columns, weights, through, reward[actions])
+            unknown = np.flatnonzero(through < 0)
+            ptr, lumped_columns, lumped_weights, constant = equations
+            data, indices, pointers, rhs = kq.equations(
+                ptr, lumped_columns, lumped_weights, unknown, np.zeros(len(states)), constant
             )
             with np.errstate(all="ignore"):
                 try:
-                    solver = splu(sp.identity(len(states), format="csc") - matrix.tocsc())
-                    solved = solver.solve(reward[actions])
+                    solver = splu(sp.csr_matrix((data, indices, pointers), shape=(len(unknown),) * 2).tocsc())
+                    solved = np.zeros(len(states))
+                    solved[unknown] = solver.solve(rhs)
                 except RuntimeError:  # singular: the scheduler does not reach the target
                     break
+            kq.unlump(through, reward[actions], solved)
             if not np.isfinite(solved).all() or (solved < -1e-9).any():
                 break
-            chosen, guess, factor = actions, np.maximum(solved, 0.0), solver
+            chosen, guess, factor = (
+                actions,
+                np.maximum(solved, 0.0),
+                (solver, through, (rows, columns, weights), unknown),
+            )
             values = np.where(free, 0.0, x)
             values[states] = guess
             current = np.full(r.states, -1, dtype=np.int64)
             current[states] = chosen
         if guess is None or factor is None or chosen is None:
             return None
+        solver, through, matrix, unknown = factor
+        ones = np.ones(len(states))
+        lumped = kq.lump(len(states), *matrix, through, ones)
+        ptr, lumped_columns, lumped_weights, constant = lumped
+        rhs = kq.equations(ptr, lumped_columns, lumped_weights, unknown, np.zeros(len(states)), constant)[3]
+        steps = np.zeros(len(states))
         with np.errstate(all="ignore"):
-            steps = factor.solve(np.ones(len(states)))
+            steps[unknown] = solver.solve(rhs)
+        kq.unlump(through, ones, steps)
         if not np.isfinite(steps).all():
             return None
         out, length, policy = np.zeros(r.states), np.zeros(r.states), np.full(r.states, -1, dtype=np.int64)

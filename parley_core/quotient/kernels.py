@@ -12,6 +12,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+FIRST_GUESS = 12
+"""Sweeps before :func:`gauss_seidel` may judge, from how fast the change falls, that it will
+not converge in time."""
+RATE_SWEEPS = 4
+"""The sweeps over which :func:`gauss_seidel` measures that rate."""
+
 
 @njit(cache=True)
 def _consistent(policy, choice_dec, choice_val, c, consulted):
@@ -277,15 +283,64 @@ def lump(count, indptr, cols, vals, through, constant):
     return lumped_ptr, lumped_cols[:k], lumped_vals[:k], lumped_constant
 
 
+@njit(cache=True)
+def unlump(through, constant, x):
+    """The values of the passed-through states (in place), from the chains' ends in ``x``:
+    x[s] = constant[s] + x[next], the inverse of :func:`lump`."""
+    count = through.shape[0]
+    done = through < 0
+    path = np.empty(count, dtype=np.int64)
+    for s in range(count):
+        top = 0
+        u = s
+        while not done[u]:
+            path[top] = u
+            top += 1
+            u = through[u]
+        for i in range(top - 1, -1, -1):
+            v = path[i]
+            x[v] = constant[v] + x[through[v]]
+            done[v] = True
+
+
+@njit(cache=True)
+def chosen_rows(actions, action_entries, targets, probabilities, index):
+    """The CSR (pointers, columns, values) over local states of the transitions of the
+    chosen ``actions`` (one per local state), keeping only targets with a local ``index``
+    (>= 0)."""
+    n = actions.shape[0]
+    size = 0
+    for i in range(n):
+        size += action_entries[actions[i] + 1] - action_entries[actions[i]]
+    pointers = np.zeros(n + 1, dtype=np.int64)
+    columns = np.empty(size, dtype=np.int64)
+    values = np.empty(size)
+    k = 0
+    for i in range(n):
+        a = actions[i]
+        for e in range(action_entries[a], action_entries[a + 1]):
+            j = index[targets[e]]
+            if j >= 0:
+                columns[k] = j
+                values[k] = probabilities[e]
+                k += 1
+        pointers[i + 1] = k
+    return pointers, columns[:k], values[:k]
+
+
 @njit(cache=True, fastmath=True)
-def gauss_seidel(indptr, cols, vals, rows, x, constant, tolerance, max_sweeps):
+def gauss_seidel(indptr, cols, vals, rows, x, constant, tolerance, max_sweeps, give_up=False):
     """Solve x = constant + P x on the states ``rows`` (in this order), the others fixed at
     their x.
 
     A state's self-loop is solved for directly (its factor 1 / (1 - loop) computed once; a
     state that only loops keeps its x). Stops when no value moves by more than
     ``tolerance`` relative to its size (absolutely, below 1); returns the sweeps used, or
-    -1 without convergence.
+    -1 without convergence. With ``give_up``, also -1 as soon as the change's rate over the
+    last :data:`RATE_SWEEPS` sweeps (from sweep :data:`FIRST_GUESS` on) says that twice the
+    sweeps left would not reach the tolerance: a slowly mixing chain (PAYNT's dpm, where a
+    battery runs out with probability 0.01 a step) then goes to a direct solve at once.
+    Whether it gives up depends on the equations alone.
     """
     n = rows.shape[0]
     scale = np.zeros(n)
@@ -297,6 +352,7 @@ def gauss_seidel(indptr, cols, vals, rows, x, constant, tolerance, max_sweeps):
                 loop += vals[e]
         if loop < 1.0:
             scale[i] = 1.0 / (1.0 - loop)
+    history = np.zeros(RATE_SWEEPS + 1)
     for sweep in range(max_sweeps):
         change = 0.0
         for i in range(n):
@@ -319,6 +375,16 @@ def gauss_seidel(indptr, cols, vals, rows, x, constant, tolerance, max_sweeps):
             x[s] = value
         if change <= tolerance:
             return sweep + 1
+        history[sweep % (RATE_SWEEPS + 1)] = change
+        if give_up and tolerance > 0.0 and sweep + 1 >= FIRST_GUESS:
+            before = history[(sweep + 1) % (RATE_SWEEPS + 1)]  # the change RATE_SWEEPS sweeps ago
+            if before > 0.0 and change >= before:
+                return -1
+            if before > 0.0:
+                rate = (change / before) ** (1.0 / RATE_SWEEPS)
+                needed = np.log(tolerance / change) / np.log(rate)
+                if needed > 2.0 * (max_sweeps - sweep - 1):
+                    return -1
     return -1
 
 
@@ -430,6 +496,47 @@ def cumulative(count, indptr, cols, vals, steps, rewards, levels):
         for s in range(count):
             totals[r] += rewards[r, s] * visits[s]
     return totals
+
+
+@njit(cache=True)
+def equations(indptr, cols, vals, idx, x, constant):
+    """The CSR (data, indices, pointers) of I - P on the states ``idx`` (sorted; local
+    indices 0..len-1), with the diagonal first in each row, and the right-hand side
+    ``constant + P x`` over the other states (their x fixed)."""
+    count = indptr.shape[0] - 1
+    local = np.full(count, -1, dtype=np.int64)
+    for i in range(idx.shape[0]):
+        local[idx[i]] = i
+    size = 0
+    for i in range(idx.shape[0]):
+        s = idx[i]
+        size += 1 + indptr[s + 1] - indptr[s]
+    data = np.empty(size)
+    indices = np.empty(size, dtype=np.int64)
+    pointers = np.zeros(idx.shape[0] + 1, dtype=np.int64)
+    rhs = np.empty(idx.shape[0])
+    k = 0
+    for i in range(idx.shape[0]):
+        s = idx[i]
+        diagonal = k
+        data[k] = 1.0
+        indices[k] = i
+        k += 1
+        total = constant[s]
+        for e in range(indptr[s], indptr[s + 1]):
+            t = cols[e]
+            j = local[t]
+            if j == i:
+                data[diagonal] -= vals[e]
+            elif j >= 0:
+                data[k] = -vals[e]
+                indices[k] = j
+                k += 1
+            else:
+                total += vals[e] * x[t]
+        rhs[i] = total
+        pointers[i + 1] = k
+    return data[:k], indices[:k], pointers, rhs
 
 
 @njit(cache=True)

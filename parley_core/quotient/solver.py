@@ -8,6 +8,8 @@ step-bounded ones are exact iterations.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
@@ -31,7 +33,23 @@ SLOW_SWEEPS = 100
 """A solve that needs more sweeps than this mixes slowly: its Gauss-Seidel value is far less
 reliable than its last change suggests, and a sparse LU solve is cheaper than certifying it
 (PAYNT's dpm, 2,195 free states: 200 sweeps cost 5 ms, its LU solve with the bound 7 ms, and
-sweeps to a certified value 15 ms)."""
+sweeps to a certified value 15 ms). The sweeps give up earlier where the rate at which their
+change falls says they cannot make it (:func:`.kernels.gauss_seidel`'s ``give_up``)."""
+
+
+class _Equations:
+    """What one policy's objectives with the same equations share (:meth:`QuotientSolver._solve`)."""
+
+    def __init__(self) -> None:
+        self.slow = False
+        """The sweeps gave up: a direct solve at once."""
+        self.singular = False
+        self.factors: Any = None
+        self.system: Any = None
+        self.steps = np.zeros(0)
+        """h solving (I - P) h = 1, by the factors."""
+        self.worst = np.inf
+        """max |1 - (I - P) h|: h's residual."""
 
 
 class QuotientSolver:
@@ -105,16 +123,17 @@ class QuotientSolver:
         indptr, cols, vals = self.indptr[: count + 1], self.cols[:nnz], self.vals[:nnz]
         order = self.order[:count]
         values: list[float | None] = [None] * len(q.objectives)
+        shared: dict[bytes, _Equations] = {}
         for steps, (indices, rewards) in self.cumulative.items():
             totals = kernels.cumulative(count, indptr, cols, vals, steps, self.rewards[rewards, :count], self.levels)
             for i, total in zip(indices, totals):
                 values[i] = float(total)
         for i, objective in enumerate(q.objectives):
             if objective is not None and objective.kind is not KernelKind.CUMULATIVE:
-                values[i] = self._objective(objective, count, indptr, cols, vals, order)
+                values[i] = self._objective(objective, count, indptr, cols, vals, order, shared)
         return values
 
-    def _objective(self, objective, count, indptr, cols, vals, order) -> float:
+    def _objective(self, objective, count, indptr, cols, vals, order, shared) -> float:
         if objective.kind is KernelKind.UNTIL:
             left, right = objective.left[order], self._right(objective, order, count)
             # Iterating from 0, a state that cannot reach a right state keeps exactly 0 (the
@@ -123,7 +142,7 @@ class QuotientSolver:
             free = left & ~right & ~kernels.cannot_reach(count, indptr, cols, right, left)
             can = kernels.backward_reach(count, indptr, cols, right, left)
             x = np.where(right, 1.0, 0.0)
-            return self._solve(count, indptr, cols, vals, free, x, np.zeros(count), can & ~right)
+            return self._solve(count, indptr, cols, vals, free, x, np.zeros(count), can & ~right, shared)
         if objective.kind is KernelKind.BOUNDED:
             left, right = objective.left[order], self._right(objective, order, count)
             x = np.where(right, 1.0, 0.0)
@@ -141,7 +160,7 @@ class QuotientSolver:
                 return float("inf")
             free = ~right & ~infinite
             constant = np.where(free, reward, 0.0)
-            return self._solve(count, indptr, cols, vals, free, np.zeros(count), constant, free)
+            return self._solve(count, indptr, cols, vals, free, np.zeros(count), constant, free, shared)
         if objective.kind is KernelKind.TOTAL:
             matrix = sp.csr_matrix((vals, cols, indptr), shape=(count, count))
             _, labels = csgraph.connected_components(matrix, directed=True, connection="strong")
@@ -158,7 +177,7 @@ class QuotientSolver:
                 return float("inf")
             free = ~bottom & ~infinite
             constant = np.where(free, reward, 0.0)
-            return self._solve(count, indptr, cols, vals, free, np.zeros(count), constant, free)
+            return self._solve(count, indptr, cols, vals, free, np.zeros(count), constant, free, shared)
         raise ValueError(objective.kind)
 
     def _right(self, objective, order, count) -> np.ndarray:
@@ -167,31 +186,47 @@ class QuotientSolver:
             return objective.right[order] | self.stuck[:count]
         return objective.right[order]
 
-    def _solve(self, count, indptr, cols, vals, free, x, constant, exact) -> float:
+    def _solve(self, count, indptr, cols, vals, free, x, constant, exact, shared) -> float:
         """x[0] for x = constant + P x on the ``free`` states, certified: Gauss-Seidel sweeps
         first, a direct sparse solve if they do not converge or cannot be certified, and NaN
         if neither can be (the evaluator has Storm check that policy instead). ``exact``
         are the states whose values the equations determine (``free`` minus any it holds
         that keep their value anyway); the certificate (:func:`.kernels.residual` times
-        :meth:`_amplification`) bounds the
-        error at the initial state by :data:`CERTIFIED` times its size (at least 1)."""
-        converged, lumped, rows = self._sweeps(count, indptr, cols, vals, free, x, constant)
-        if converged:
-            lumped_ptr, lumped_cols, lumped_vals, lumped_constant = lumped
-            checked = rows[exact[rows]]
-            if not exact[0] or checked.size == 0:
-                return float(x[0])  # the initial state's value is fixed (a target, or no way to one)
-            target = CERTIFIED * max(1.0, abs(x[0]))
-            gain = self._amplification(lumped_ptr, lumped_cols, lumped_vals, checked, count)
-            for _ in range(REFINEMENTS + 1):
-                error = kernels.residual(lumped_ptr, lumped_cols, lumped_vals, checked, x, lumped_constant) * gain
-                if error <= target:
-                    return float(x[0])
-                if not np.isfinite(gain):
-                    break
-                kernels.gauss_seidel(lumped_ptr, lumped_cols, lumped_vals, rows, x, lumped_constant, 0.0, MORE_SWEEPS)
+        :meth:`_amplification`) bounds the error at the initial state by :data:`CERTIFIED`
+        times its size (at least 1). Objectives of one policy with the same ``free`` and
+        ``exact`` (expected rewards to one target) share ``shared``'s entry for them: once
+        the sweeps give up on one, the others go to the direct solve at once, and all use
+        its factors."""
+        known = shared.setdefault(free.tobytes() + exact.tobytes(), _Equations())
+        through = kernels.pass_through(count, indptr, cols, vals, ~free, count)
+        # (indptr, cols, vals, constant) of the lumped equations
+        lumped = kernels.lump(count, indptr, cols, vals, through, constant)
+        rows = np.flatnonzero(free & (through < 0))[::-1].copy()
+        if not known.slow:
+            ptr, lumped_cols, lumped_vals, lumped_constant = lumped
+            sweeps = kernels.gauss_seidel(
+                ptr, lumped_cols, lumped_vals, rows, x, lumped_constant, TOLERANCE, SLOW_SWEEPS, True
+            )
+            self.last_sweeps = sweeps
+            known.slow = sweeps < 0
+            if not known.slow:
+                lumped_ptr, lumped_cols, lumped_vals, lumped_constant = lumped
+                checked = rows[exact[rows]]
+                if not exact[0] or checked.size == 0:
+                    return float(x[0])  # the initial state's value is fixed (a target, or no way to one)
+                target = CERTIFIED * max(1.0, abs(x[0]))
+                gain = self._amplification(lumped_ptr, lumped_cols, lumped_vals, checked, count)
+                for _ in range(REFINEMENTS + 1):
+                    error = kernels.residual(lumped_ptr, lumped_cols, lumped_vals, checked, x, lumped_constant) * gain
+                    if error <= target:
+                        return float(x[0])
+                    if not np.isfinite(gain):
+                        break
+                    kernels.gauss_seidel(
+                        lumped_ptr, lumped_cols, lumped_vals, rows, x, lumped_constant, 0.0, MORE_SWEEPS
+                    )
         self.direct_solves += 1
-        return self._direct(count, indptr, cols, vals, exact, x, constant)
+        return self._direct(lumped, exact & (through < 0), x, known)
 
     def _amplification(self, indptr, cols, vals, rows, count) -> float:
         """A bound on (N 1)(s0) for N = (I - P)^-1 on ``rows``: h[s0] / c for a rough solution
@@ -204,21 +239,31 @@ class QuotientSolver:
         worst = kernels.residual(indptr, cols, vals, rows, h, ones)
         return float(h[0] / (1.0 - worst)) if worst <= 0.5 else float("inf")
 
-    def _direct(self, count, indptr, cols, vals, free, x, constant) -> float:
-        """x[0] by a sparse LU solve of (I - P) x = constant + P_fixed x on the ``free``
-        states, with the same kind of bound as :meth:`_solve`, computed from the LU
-        solution of (I - P) h = 1; NaN if the bound exceeds :data:`CERTIFIED`."""
-        idx = np.flatnonzero(free)
-        if not free[0]:
+    def _direct(self, lumped, exact, x, known: _Equations) -> float:
+        """x[0] by a sparse LU solve of the lumped equations (``lumped``: :func:`.kernels.lump`'s)
+        on the ``exact`` states (none passed through), the others fixed at their x, with the
+        same kind of bound as :meth:`_solve`, computed from the LU solution of (I - P) h = 1;
+        NaN if the bound exceeds :data:`CERTIFIED`. The factors, and h, are kept in ``known``
+        for the next objective with the same equations."""
+        if not exact[0]:
             return float(x[0])
-        matrix = sp.csr_matrix((vals, cols, indptr), shape=(count, count))
-        system = (sp.identity(len(idx)) - matrix[idx][:, idx]).tocsc()
-        rhs = constant[idx] + matrix[idx][:, np.flatnonzero(~free)] @ x[~free]
-        try:
-            factors = splu(system)
-        except RuntimeError:  # singular: the equations do not determine the values
+        idx = np.flatnonzero(exact)
+        ptr, lumped_cols, lumped_vals, lumped_constant = lumped
+        data, indices, pointers, rhs = kernels.equations(ptr, lumped_cols, lumped_vals, idx, x, lumped_constant)
+        if known.factors is None and not known.singular:
+            system = sp.csr_matrix((data, indices, pointers), shape=(len(idx), len(idx)))
+            try:
+                factors = splu(system.tocsc())
+            except RuntimeError:  # singular: the equations do not determine the values
+                known.singular = True
+            else:
+                steps = factors.solve(np.ones(len(idx)))
+                known.factors, known.system, known.steps = factors, system, steps
+                known.worst = float(np.abs(1.0 - system @ steps).max(initial=0.0))
+        if known.singular:
             self.uncertified += 1
             return float("nan")
+        factors, system, steps = known.factors, known.system, known.steps
         solution = factors.solve(rhs)
         solution += factors.solve(rhs - system @ solution)  # one step of iterative refinement
         residual = np.abs(rhs - system @ solution)
@@ -226,29 +271,12 @@ class QuotientSolver:
         # the same factors, and its own error bounded the same way (|e* - e| <= max|r_e| N 1,
         # N 1 <= 2 h when h solves (I - P) h = 1 with a residual at most 1/2)
         error = factors.solve(residual)
-        steps = factors.solve(np.ones(len(idx)))
-        worst = float(np.abs(1.0 - system @ steps).max(initial=0.0))
         slack = float(np.abs(residual - system @ error).max(initial=0.0))
         x[idx] = solution
-        value = float(x[0])
-        start = int(np.searchsorted(idx, 0))
-        if worst <= 0.5:
-            bound = abs(error[start]) + slack * 2.0 * abs(steps[start])
+        value = float(x[0])  # idx[0] is the initial state
+        if known.worst <= 0.5:
+            bound = abs(error[0]) + slack * 2.0 * abs(steps[0])
             if bound <= CERTIFIED * max(1.0, abs(value)):
                 return value
         self.uncertified += 1
         return float("nan")
-
-    def _sweeps(self, count, indptr, cols, vals, free, x, constant):
-        """Gauss-Seidel for x = constant + P x on the ``free`` states, in reverse breadth-first
-        order, with the states that only pass probability on (one transition, probability
-        1) substituted away; x[0] holds the value when it returns True (converged)."""
-        through = kernels.pass_through(count, indptr, cols, vals, ~free, count)
-        # (indptr, cols, vals, constant) of the lumped equations
-        lumped: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] = kernels.lump(
-            count, indptr, cols, vals, through, constant
-        )
-        rows = np.flatnonzero(free & (through < 0))[::-1].copy()
-        sweeps = kernels.gauss_seidel(*lumped[:3], rows, x, lumped[3], TOLERANCE, SLOW_SWEEPS)
-        self.last_sweeps = sweeps
-        return sweeps >= 0, lumped, rows
