@@ -191,13 +191,16 @@ def test_on_dpm_both_rewards_share_one_direct_solve(foreign, monkeypatch):
     # LU factorization a policy, and still agree with Storm
     from test_bound import dpm
 
+    from parley_core.quotient import ordering
     from parley_core.quotient import solver as module
     from parley_core.quotient.coloring import build_quotient
 
     fam = dpm(foreign, free=3)
     factorizations = []
-    real = module.splu
-    monkeypatch.setattr(module, "splu", lambda matrix: factorizations.append(matrix.shape) or real(matrix))
+    real = ordering.splu
+    monkeypatch.setattr(
+        ordering, "splu", lambda matrix, **how: factorizations.append(matrix.shape) or real(matrix, **how)
+    )
     solver = module.QuotientSolver(build_quotient(fam))
     rows = np.array([[a, b, c] + [1] * 13 for a in range(3) for b in range(3) for c in range(3)], dtype=np.int64)
     fast = np.array([solver.solve(row) for row in rows], dtype=float)

@@ -242,3 +242,33 @@ def test_gauss_seidel_gives_up_early_on_a_slowly_mixing_chain_only_when_asked():
     x = np.zeros(3)
     used = kernels.gauss_seidel(indptr, cols, vals, rows, x, constant, 1e-12, 400, True)
     assert used > kernels.FIRST_GUESS and x[0] == pytest.approx(5.0, rel=1e-10)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 4, 6])
+def test_solves_in_the_models_elimination_order_are_the_solution(seed):
+    from parley_core.quotient import ordering
+
+    indptr, cols, vals, levels = random_dtmc(seed, n=200, single=0.3)
+    count = len(levels)
+    matrix = dense(indptr, cols, vals)
+    right = np.random.default_rng(7000 + seed).random(count) < 0.3
+    free = ~right & reaches(matrix, right, np.ones(count, bool))
+    sources = np.repeat(np.arange(count), np.diff(indptr))
+    rank = ordering.elimination_rank(count, sources, cols)
+    assert sorted(rank.tolist()) == list(range(count))
+    idx = ordering.in_order(np.flatnonzero(free), rank[free])
+    assert (np.diff(rank[idx]) > 0).all()
+    reward = np.ones(count)
+    data, indices, pointers, rhs = kernels.equations(indptr, cols, vals, idx, np.zeros(count), reward)
+    system, factors = ordering.factor(data, indices, pointers)
+    expected = np.linalg.solve(np.eye(len(idx)) - matrix[np.ix_(idx, idx)], reward[idx])
+    assert np.allclose(factors.solve(rhs), expected, rtol=1e-9)
+    assert np.allclose(system.toarray(), np.eye(len(idx)) - matrix[np.ix_(idx, idx)])
+
+
+def test_a_system_without_a_way_out_is_refused_as_singular():
+    from parley_core.quotient import ordering
+
+    # two states that pass to each other with probability 1: I - P is singular
+    with pytest.raises(RuntimeError):
+        ordering.factor(np.array([1.0, -1.0, 1.0, -1.0]), np.array([0, 1, 1, 0]), np.array([0, 2, 4]))

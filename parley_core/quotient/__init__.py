@@ -7,7 +7,7 @@
   and packs the arrays the solver needs (:class:`~.coloring.Quotient`, picklable).
 - :mod:`.compile` turns objectives into the kernels' form.
 - :mod:`.solver` evaluates one policy at a time on a quotient; :mod:`.kernels` are its
-  compiled loops.
+  compiled loops, :mod:`.ordering` its sparse LU solves.
 
 The process-pool evaluator built on it is :class:`parley_core.evaluate.quotient.QuotientEvaluator`.
 """

@@ -8,12 +8,14 @@ domain's indices.
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
 
 from parley_core.model import Direction, Family
 from parley_core.quotient import kernels as kq
+from parley_core.quotient import ordering
 from parley_core.quotient import subfamily as k
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.compile import KernelKind
@@ -309,14 +311,18 @@ class RelaxedObjectives:
                           reward[0], right, True, x, TOLERANCE, sweeps)  # fmt: skip
         return x
 
+    @functools.cached_property
+    def rank(self) -> np.ndarray:
+        """Per state of the relaxation its place in the sparse solves' elimination order."""
+        r = self.relaxation
+        sources = np.repeat(np.repeat(np.arange(r.states), np.diff(r.state_actions)), np.diff(r.action_entries))
+        return ordering.elimination_rank(r.states, sources, r.targets)
+
     def _policy_iteration(self, view: Restricted, reward: np.ndarray, free: np.ndarray, x: np.ndarray, start):
         """The values, expected steps and actions of the best scheduler policy iteration finds
         on ``free`` from ``start`` (an action per state, -1 where it takes the greedy one of
         ``x``); None if a solve fails (a scheduler that does not reach the target). Only a
         guess: the caller checks it before using it."""
-        import scipy.sparse as sp
-        from scipy.sparse.linalg import splu
-
         r = self.relaxation
         index = np.full(r.states, -1, dtype=np.int64)
         states = np.flatnonzero(free)
@@ -335,14 +341,14 @@ class RelaxedObjectives:
             through = kq.pass_through(len(states), rows, columns, weights, np.zeros(len(states), dtype=bool),
                                       len(states))  # fmt: skip
             equations = kq.lump(len(states), rows, columns, weights, through, reward[actions])
-            unknown = np.flatnonzero(through < 0)
+            unknown = ordering.in_order(np.flatnonzero(through < 0), self.rank[states[through < 0]])
             ptr, lumped_columns, lumped_weights, constant = equations
             data, indices, pointers, rhs = kq.equations(
                 ptr, lumped_columns, lumped_weights, unknown, np.zeros(len(states)), constant
             )
             with np.errstate(all="ignore"):
                 try:
-                    solver = splu(sp.csr_matrix((data, indices, pointers), shape=(len(unknown),) * 2).tocsc())
+                    solver = ordering.factor(data, indices, pointers)[1]
                     solved = np.zeros(len(states))
                     solved[unknown] = solver.solve(rhs)
                 except RuntimeError:  # singular: the scheduler does not reach the target

@@ -8,14 +8,14 @@ step-bounded ones are exact iterations.
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
-from scipy.sparse.linalg import splu
 
-from parley_core.quotient import kernels
+from parley_core.quotient import kernels, ordering
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.compile import KernelKind
 
@@ -142,7 +142,7 @@ class QuotientSolver:
             free = left & ~right & ~kernels.cannot_reach(count, indptr, cols, right, left)
             can = kernels.backward_reach(count, indptr, cols, right, left)
             x = np.where(right, 1.0, 0.0)
-            return self._solve(count, indptr, cols, vals, free, x, np.zeros(count), can & ~right, shared)
+            return self._solve(count, indptr, cols, vals, free, x, np.zeros(count), can & ~right, shared, order)
         if objective.kind is KernelKind.BOUNDED:
             left, right = objective.left[order], self._right(objective, order, count)
             x = np.where(right, 1.0, 0.0)
@@ -160,7 +160,7 @@ class QuotientSolver:
                 return float("inf")
             free = ~right & ~infinite
             constant = np.where(free, reward, 0.0)
-            return self._solve(count, indptr, cols, vals, free, np.zeros(count), constant, free, shared)
+            return self._solve(count, indptr, cols, vals, free, np.zeros(count), constant, free, shared, order)
         if objective.kind is KernelKind.TOTAL:
             matrix = sp.csr_matrix((vals, cols, indptr), shape=(count, count))
             _, labels = csgraph.connected_components(matrix, directed=True, connection="strong")
@@ -177,7 +177,7 @@ class QuotientSolver:
                 return float("inf")
             free = ~bottom & ~infinite
             constant = np.where(free, reward, 0.0)
-            return self._solve(count, indptr, cols, vals, free, np.zeros(count), constant, free, shared)
+            return self._solve(count, indptr, cols, vals, free, np.zeros(count), constant, free, shared, order)
         raise ValueError(objective.kind)
 
     def _right(self, objective, order, count) -> np.ndarray:
@@ -186,7 +186,7 @@ class QuotientSolver:
             return objective.right[order] | self.stuck[:count]
         return objective.right[order]
 
-    def _solve(self, count, indptr, cols, vals, free, x, constant, exact, shared) -> float:
+    def _solve(self, count, indptr, cols, vals, free, x, constant, exact, shared, order) -> float:
         """x[0] for x = constant + P x on the ``free`` states, certified: Gauss-Seidel sweeps
         first, a direct sparse solve if they do not converge or cannot be certified, and NaN
         if neither can be (the evaluator has Storm check that policy instead). ``exact``
@@ -226,7 +226,15 @@ class QuotientSolver:
                         lumped_ptr, lumped_cols, lumped_vals, rows, x, lumped_constant, 0.0, MORE_SWEEPS
                     )
         self.direct_solves += 1
-        return self._direct(lumped, exact & (through < 0), x, known)
+        return self._direct(lumped, exact & (through < 0), x, known, order)
+
+    @functools.cached_property
+    def rank(self) -> np.ndarray:
+        """Per quotient state its place in the direct solves' elimination order (the quotient's
+        alone: a value does not depend on which policies were solved before)."""
+        q = self.q
+        sources = np.repeat(np.repeat(np.arange(q.states), np.diff(q.state_choices)), np.diff(q.choice_branches))
+        return ordering.elimination_rank(q.states, sources, q.targets)
 
     def _amplification(self, indptr, cols, vals, rows, count) -> float:
         """A bound on (N 1)(s0) for N = (I - P)^-1 on ``rows``: h[s0] / c for a rough solution
@@ -239,21 +247,23 @@ class QuotientSolver:
         worst = kernels.residual(indptr, cols, vals, rows, h, ones)
         return float(h[0] / (1.0 - worst)) if worst <= 0.5 else float("inf")
 
-    def _direct(self, lumped, exact, x, known: _Equations) -> float:
+    def _direct(self, lumped, exact, x, known: _Equations, order: np.ndarray) -> float:
         """x[0] by a sparse LU solve of the lumped equations (``lumped``: :func:`.kernels.lump`'s)
-        on the ``exact`` states (none passed through), the others fixed at their x, with the
+        on the ``exact`` states (none passed through; ``order``: their quotient states, for the
+        elimination order of :mod:`.ordering`), the others fixed at their x, with the
         same kind of bound as :meth:`_solve`, computed from the LU solution of (I - P) h = 1;
         NaN if the bound exceeds :data:`CERTIFIED`. The factors, and h, are kept in ``known``
         for the next objective with the same equations."""
         if not exact[0]:
             return float(x[0])
         idx = np.flatnonzero(exact)
+        idx = ordering.in_order(idx, self.rank[order[idx]])
+        start = int(np.flatnonzero(idx == 0)[0])  # the initial state's place
         ptr, lumped_cols, lumped_vals, lumped_constant = lumped
         data, indices, pointers, rhs = kernels.equations(ptr, lumped_cols, lumped_vals, idx, x, lumped_constant)
         if known.factors is None and not known.singular:
-            system = sp.csr_matrix((data, indices, pointers), shape=(len(idx), len(idx)))
             try:
-                factors = splu(system.tocsc())
+                system, factors = ordering.factor(data, indices, pointers)
             except RuntimeError:  # singular: the equations do not determine the values
                 known.singular = True
             else:
@@ -273,9 +283,9 @@ class QuotientSolver:
         error = factors.solve(residual)
         slack = float(np.abs(residual - system @ error).max(initial=0.0))
         x[idx] = solution
-        value = float(x[0])  # idx[0] is the initial state
+        value = float(x[0])
         if known.worst <= 0.5:
-            bound = abs(error[0]) + slack * 2.0 * abs(steps[0])
+            bound = abs(error[start]) + slack * 2.0 * abs(steps[start])
             if bound <= CERTIFIED * max(1.0, abs(value)):
                 return value
         self.uncertified += 1
