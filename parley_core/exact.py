@@ -62,9 +62,9 @@ BOX_BATCH = 65536
 """Policies of whole boxes handed to a box evaluator at a time."""
 BATCH_SECONDS = 5.0
 """Once the evaluator's speed is measured, a batch holds at most what it solves in this long
-(at least :data:`SMALLEST_BATCH` policies): with slow policies (PAYNT's dpm, about 7 ms
-each on two workers) batches of 65,536 kept the search waiting 20 minutes past its time
-limit for the batches in flight."""
+(at least :data:`SMALLEST_BATCH` policies): with slow policies (PAYNT's dpm, then about 7 ms
+each on two workers, now 1 ms) batches of 65,536 kept the search waiting 20 minutes past its
+time limit for the batches in flight."""
 SMALLEST_BATCH = 64
 IN_FLIGHT = 2
 """Batches an evaluator may be solving while nodes are bounded: the workers always have the

@@ -4,6 +4,7 @@ a :class:`~parley_core.progress.Reporter`), shared by the ``parley`` command and
 
 from __future__ import annotations
 
+import time
 from contextlib import AbstractContextManager, nullcontext
 
 from rich.console import Console
@@ -36,13 +37,20 @@ def progress_bars(console: Console | None = None, description: str = "{task.desc
     )
 
 
+LOG_EVERY = 60.0
+"""Where stderr is not a terminal (a batch job, ``nohup``, a pipe), bars are drawn only when
+they stop: a line says how far the stage is at most this often (seconds) instead."""
+
+
 class RichReporter:
-    """Draws one progress bar per pipeline stage on stderr (a :class:`~parley_core.progress.Reporter`)."""
+    """Draws one progress bar per pipeline stage on stderr (a :class:`~parley_core.progress.Reporter`);
+    where stderr is not a terminal, a line every :data:`LOG_EVERY` seconds of a stage."""
 
     def __init__(self, console: Console) -> None:
         self.console = console
         self.progress = progress_bars(console, "{task.description:<18}")
         self.task: TaskID | None = None
+        self.logged = time.monotonic()
 
     def __enter__(self) -> RichReporter:
         self.progress.start()
@@ -65,10 +73,17 @@ class RichReporter:
     def stage(self, name: str, total: int | None = None) -> None:
         self._finish()
         self.task = self.progress.add_task(name, total=total)
+        self.logged = time.monotonic()
 
     def advance(self, n: int = 1) -> None:
         if self.task is not None:
             self.progress.advance(self.task, n)
+            if not self.console.is_terminal and time.monotonic() - self.logged >= LOG_EVERY:
+                self.logged = time.monotonic()
+                task = self.progress.tasks[-1]
+                done = f"{task.completed:,.0f}" + (f" of {task.total:,.0f}" if task.total else "")
+                minutes, seconds = divmod(int(task.elapsed or 0), 60)
+                self.console.print(f"{task.description}: {done} after {minutes}:{seconds:02d}", highlight=False)
 
     def note(self, text: str) -> None:
         self.progress.console.print(f"[yellow]note:[/] {text}")

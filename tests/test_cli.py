@@ -229,3 +229,26 @@ def test_malformed_policies_file(tmp_path):
     path.write_text("policy,xhat,yhat,c\nmine,0,0,3\n")
     result = invoke("evaluate", "robot_grid", "--set", "size=3", "--set", "seed=2", "--policies", str(path))
     assert_user_error(result, "policy 'mine' lacks xhat=0, yhat=1 and 7 more valuations; give one row per valuation")
+
+
+def test_where_stderr_is_no_terminal_a_line_tells_how_far_a_stage_is(monkeypatch):
+    # a batch job sees no bars until they stop: it gets a line per LOG_EVERY seconds instead
+    import io
+
+    from rich.console import Console
+
+    from parley_core import richprogress
+
+    out = io.StringIO()
+    monkeypatch.setattr(richprogress, "LOG_EVERY", 0.0)
+    with richprogress.RichReporter(Console(file=out, force_terminal=False, width=100)) as reporter:
+        reporter.stage("branch and bound", 1000)
+        reporter.advance(250)
+    assert "branch and bound: 250 of 1,000 after 0:00" in out.getvalue()
+    # at the usual interval a short stage prints no such line
+    monkeypatch.setattr(richprogress, "LOG_EVERY", 60.0)
+    out = io.StringIO()
+    with richprogress.RichReporter(Console(file=out, force_terminal=False, width=100)) as reporter:
+        reporter.stage("branch and bound", 1000)
+        reporter.advance(250)
+    assert " of 1,000 after" not in out.getvalue()
