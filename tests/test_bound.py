@@ -180,7 +180,7 @@ def test_rewards_to_one_target_give_a_pareto_bound_on_a_model_we_did_not_write(f
     # PAYNT's dpm: power and lost requests, both expected until "finished"; their weighted
     # sums are one expected reward, bounded from below by policy iteration's value checked as
     # a post-fixpoint, where iterating from 0 takes thousands of sweeps
-    from parley_core.quotient import bounds as module
+    from parley_core.quotient import policy_iteration
     from parley_core.quotient.bounds import RelaxedObjectives
 
     case = dpm(foreign)
@@ -206,7 +206,7 @@ def test_rewards_to_one_target_give_a_pareto_bound_on_a_model_we_did_not_write(f
     weights = np.array([[1.0, 10.0], [1.0, 0.1]])
     fast = relaxed.weighted(view, weights)
     assert len(view.schedulers) == 2
-    monkeypatch.setattr(module, "ITERATIONS", 0)
+    monkeypatch.setattr(policy_iteration, "ITERATIONS", 0)
     slow = relaxed.weighted(relaxed.restrict(np.zeros(len(case.decisions), dtype=np.int64), relaxed.sizes - 1), weights)
     np.testing.assert_allclose(fast, slow, rtol=1e-7)
     assert ((storm @ weights.T) * -1 <= fast + 1e-9).all()

@@ -14,8 +14,7 @@ from typing import Any
 import numpy as np
 
 from parley_core.model import Direction, Family
-from parley_core.quotient import kernels as kq
-from parley_core.quotient import ordering
+from parley_core.quotient import ordering, policy_iteration
 from parley_core.quotient import subfamily as k
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.compile import KernelKind
@@ -27,8 +26,6 @@ TOLERANCE = 1e-12
 SWEEPS = 5000
 WARM = 20
 """Sweeps from 0 before policy iteration guesses the least expected reward."""
-ITERATIONS = 20
-"""Policy iteration's rounds at most (each a sparse solve)."""
 PASSES = 50
 """Passes that may lower the guess to a post-fixpoint before it is given up."""
 
@@ -291,9 +288,13 @@ class RelaxedObjectives:
         if last is not None:
             usable = last >= 0
             usable[usable] = view.allowed[last[usable]]
-            found = self._policy_iteration(view, reward[0], free, x, np.where(usable, last, -1))
+            found = policy_iteration.best_scheduler(
+                r, self.rank, view.allowed, reward[0], free, x, np.where(usable, last, -1)
+            )
         if found is None:
-            found = self._policy_iteration(view, reward[0], free, x, np.full(r.states, -1, dtype=np.int64))
+            found = policy_iteration.best_scheduler(
+                r, self.rank, view.allowed, reward[0], free, x, np.full(r.states, -1, dtype=np.int64)
+            )
         if found is not None:
             # less the expected steps times a small margin: the scheduler's own actions then
             # keep that margin, and what rounding or other actions need is lowered below
@@ -317,70 +318,6 @@ class RelaxedObjectives:
         r = self.relaxation
         sources = np.repeat(np.repeat(np.arange(r.states), np.diff(r.state_actions)), np.diff(r.action_entries))
         return ordering.elimination_rank(r.states, sources, r.targets)
-
-    def _policy_iteration(self, view: Restricted, reward: np.ndarray, free: np.ndarray, x: np.ndarray, start):
-        """The values, expected steps and actions of the best scheduler policy iteration finds
-        on ``free`` from ``start`` (an action per state, -1 where it takes the greedy one of
-        ``x``); None if a solve fails (a scheduler that does not reach the target). Only a
-        guess: the caller checks it before using it."""
-        r = self.relaxation
-        index = np.full(r.states, -1, dtype=np.int64)
-        states = np.flatnonzero(free)
-        index[states] = np.arange(len(states))
-        guess = chosen = factor = None
-        current = start
-        values = x
-        for _ in range(ITERATIONS):
-            actions = k.greedy(r.state_actions, r.action_entries, r.targets, r.probabilities, view.allowed, free,
-                               reward, values, current, guess is None)[states]  # fmt: skip
-            if (actions < 0).any() or (chosen is not None and (actions == chosen).all()):
-                break
-            # the chosen actions' equations, with the states that only pass on (one transition,
-            # probability 1: dpm's tick1, half its states) substituted away before the solve
-            rows, columns, weights = kq.chosen_rows(actions, r.action_entries, r.targets, r.probabilities, index)
-            through = kq.pass_through(len(states), rows, columns, weights, np.zeros(len(states), dtype=bool),
-                                      len(states))  # fmt: skip
-            equations = kq.lump(len(states), rows, columns, weights, through, reward[actions])
-            unknown = ordering.in_order(np.flatnonzero(through < 0), self.rank[states[through < 0]])
-            ptr, lumped_columns, lumped_weights, constant = equations
-            data, indices, pointers, rhs = kq.equations(
-                ptr, lumped_columns, lumped_weights, unknown, np.zeros(len(states)), constant
-            )
-            with np.errstate(all="ignore"):
-                try:
-                    solver = ordering.factor(data, indices, pointers)[1]
-                    solved = np.zeros(len(states))
-                    solved[unknown] = solver.solve(rhs)
-                except RuntimeError:  # singular: the scheduler does not reach the target
-                    break
-            kq.unlump(through, reward[actions], solved)
-            if not np.isfinite(solved).all() or (solved < -1e-9).any():
-                break
-            chosen, guess, factor = (
-                actions,
-                np.maximum(solved, 0.0),
-                (solver, through, (rows, columns, weights), unknown),
-            )
-            values = np.where(free, 0.0, x)
-            values[states] = guess
-            current = np.full(r.states, -1, dtype=np.int64)
-            current[states] = chosen
-        if guess is None or factor is None or chosen is None:
-            return None
-        solver, through, matrix, unknown = factor
-        ones = np.ones(len(states))
-        lumped = kq.lump(len(states), *matrix, through, ones)
-        ptr, lumped_columns, lumped_weights, constant = lumped
-        rhs = kq.equations(ptr, lumped_columns, lumped_weights, unknown, np.zeros(len(states)), constant)[3]
-        steps = np.zeros(len(states))
-        with np.errstate(all="ignore"):
-            steps[unknown] = solver.solve(rhs)
-        kq.unlump(through, ones, steps)
-        if not np.isfinite(steps).all():
-            return None
-        out, length, policy = np.zeros(r.states), np.zeros(r.states), np.full(r.states, -1, dtype=np.int64)
-        out[states], length[states], policy[states] = guess, steps, chosen
-        return out, length, policy
 
     def _horizon(self, view: Restricted, weights: np.ndarray, until: int) -> np.ndarray:
         r = self.relaxation

@@ -203,14 +203,13 @@ class QuotientSolver:
         lumped = kernels.lump(count, indptr, cols, vals, through, constant)
         rows = np.flatnonzero(free & (through < 0))[::-1].copy()
         if not known.slow:
-            ptr, lumped_cols, lumped_vals, lumped_constant = lumped
+            lumped_ptr, lumped_cols, lumped_vals, lumped_constant = lumped
             sweeps = kernels.gauss_seidel(
-                ptr, lumped_cols, lumped_vals, rows, x, lumped_constant, TOLERANCE, SLOW_SWEEPS, True
+                lumped_ptr, lumped_cols, lumped_vals, rows, x, lumped_constant, TOLERANCE, SLOW_SWEEPS, True
             )
             self.last_sweeps = sweeps
             known.slow = sweeps < 0
             if not known.slow:
-                lumped_ptr, lumped_cols, lumped_vals, lumped_constant = lumped
                 checked = rows[exact[rows]]
                 if not exact[0] or checked.size == 0:
                     return float(x[0])  # the initial state's value is fixed (a target, or no way to one)
