@@ -500,8 +500,8 @@ def cumulative(count, indptr, cols, vals, steps, rewards, levels):
 
 @njit(cache=True)
 def equations(indptr, cols, vals, idx, x, constant):
-    """The CSR (data, indices, pointers) of I - P on the states ``idx`` (sorted; local
-    indices 0..len-1), with the diagonal first in each row, and the right-hand side
+    """The CSR (data, indices, pointers) of I - P on the states ``idx`` (in any order: row and
+    column i are state idx[i]), with the diagonal first in each row, and the right-hand side
     ``constant + P x`` over the other states (their x fixed)."""
     count = indptr.shape[0] - 1
     local = np.full(count, -1, dtype=np.int64)
