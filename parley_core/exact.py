@@ -358,14 +358,16 @@ def branch_and_bound(
         harvest(wait=True)
     except KeyboardInterrupt:  # Ctrl-C: the front and the bound so far, as with a time limit
         stopped_by = "interrupted"
-        if working is not None:
-            stack.append((0.0, -next(counter), working))
         lost = [n for n in covering if n is not None]
+        queued: list[Node | None] = list(lost)  # the nodes a pending or submitted box stands for
         for batch, nodes_of in inflight:
+            queued.extend(nodes_of)
             try:
                 take(batch.result())
             except BaseException:  # the workers took the Ctrl-C too: their boxes are open again
                 lost.extend(n for n in nodes_of if n is not None)
+        if working is not None and all(n is not working for n in queued):
+            lost.append(working)
         inflight.clear()
         pending.clear()
         covering.clear()

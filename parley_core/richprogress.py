@@ -50,6 +50,8 @@ class RichReporter:
         self.console = console
         self.progress = progress_bars(console, "{task.description:<18}")
         self.task: TaskID | None = None
+        self.plain = not console.is_terminal
+        """Bars show only when they stop: a line every LOG_EVERY seconds says how far a stage is."""
         self.logged = time.monotonic()
 
     def __enter__(self) -> RichReporter:
@@ -78,7 +80,7 @@ class RichReporter:
     def advance(self, n: int = 1) -> None:
         if self.task is not None:
             self.progress.advance(self.task, n)
-            if not self.console.is_terminal and time.monotonic() - self.logged >= LOG_EVERY:
+            if self.plain and time.monotonic() - self.logged >= LOG_EVERY:
                 self.logged = time.monotonic()
                 task = self.progress.tasks[-1]
                 done = f"{task.completed:,.0f}" + (f" of {task.total:,.0f}" if task.total else "")

@@ -316,8 +316,7 @@ class RelaxedObjectives:
     def rank(self) -> np.ndarray:
         """Per state of the relaxation its place in the sparse solves' elimination order."""
         r = self.relaxation
-        sources = np.repeat(np.repeat(np.arange(r.states), np.diff(r.state_actions)), np.diff(r.action_entries))
-        return ordering.elimination_rank(r.states, sources, r.targets)
+        return ordering.elimination_rank(r.state_actions, r.action_entries, r.targets)
 
     def _horizon(self, view: Restricted, weights: np.ndarray, until: int) -> np.ndarray:
         r = self.relaxation

@@ -378,9 +378,9 @@ def gauss_seidel(indptr, cols, vals, rows, x, constant, tolerance, max_sweeps, g
         history[sweep % (RATE_SWEEPS + 1)] = change
         if give_up and tolerance > 0.0 and sweep + 1 >= FIRST_GUESS:
             before = history[(sweep + 1) % (RATE_SWEEPS + 1)]  # the change RATE_SWEEPS sweeps ago
-            if before > 0.0 and change >= before:
-                return -1
             if before > 0.0:
+                if change >= before:
+                    return -1
                 rate = (change / before) ** (1.0 / RATE_SWEEPS)
                 needed = np.log(tolerance / change) / np.log(rate)
                 if needed > 2.0 * (max_sweeps - sweep - 1):

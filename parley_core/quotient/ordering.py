@@ -18,9 +18,12 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from scipy.sparse.linalg import splu
 
 
-def elimination_rank(states: int, sources: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    """Per state its position in the elimination order of a model whose transitions go from
-    ``sources`` to ``targets`` (any of its choices)."""
+def elimination_rank(state_choices: np.ndarray, choice_entries: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """Per state its position in the elimination order of a model given as CSR over states
+    (``state_choices``) of CSR over choices (``choice_entries``) into ``targets``: the pattern
+    of every transition of any of its choices."""
+    states = len(state_choices) - 1
+    sources = np.repeat(np.repeat(np.arange(states), np.diff(state_choices)), np.diff(choice_entries))
     pattern = sp.csr_matrix((np.ones(len(sources)), (sources, targets)), shape=(states, states))
     order = reverse_cuthill_mckee((pattern + pattern.T).tocsr(), symmetric_mode=True)
     rank = np.empty(states, dtype=np.int64)

@@ -41,6 +41,8 @@ class _Equations:
     """What one policy's objectives with the same equations share (:meth:`QuotientSolver._solve`)."""
 
     def __init__(self) -> None:
+        self.through: np.ndarray | None = None
+        """Per state the one it passes on to (:func:`.kernels.pass_through`), -1 if none."""
         self.slow = False
         """The sweeps gave up: a direct solve at once."""
         self.singular = False
@@ -198,7 +200,9 @@ class QuotientSolver:
         the sweeps give up on one, the others go to the direct solve at once, and all use
         its factors."""
         known = shared.setdefault(free.tobytes() + exact.tobytes(), _Equations())
-        through = kernels.pass_through(count, indptr, cols, vals, ~free, count)
+        if known.through is None:
+            known.through = kernels.pass_through(count, indptr, cols, vals, ~free, count)
+        through = known.through
         # (indptr, cols, vals, constant) of the lumped equations
         lumped = kernels.lump(count, indptr, cols, vals, through, constant)
         rows = np.flatnonzero(free & (through < 0))[::-1].copy()
@@ -231,9 +235,7 @@ class QuotientSolver:
     def rank(self) -> np.ndarray:
         """Per quotient state its place in the direct solves' elimination order (the quotient's
         alone: a value does not depend on which policies were solved before)."""
-        q = self.q
-        sources = np.repeat(np.repeat(np.arange(q.states), np.diff(q.state_choices)), np.diff(q.choice_branches))
-        return ordering.elimination_rank(q.states, sources, q.targets)
+        return ordering.elimination_rank(self.q.state_choices, self.q.choice_branches, self.q.targets)
 
     def _amplification(self, indptr, cols, vals, rows, count) -> float:
         """A bound on (N 1)(s0) for N = (I - P)^-1 on ``rows``: h[s0] / c for a rough solution
