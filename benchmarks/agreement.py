@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from parley_core.augment import augment
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.evaluate.storm import StormEvaluator
-from parley_core.plugins import load_registry
+from parley_core.family.augment import augment
+from parley_core.plugin.manager import load_registry
 
 MAPS = Path(__file__).resolve().parents[2] / "shared" / "reference" / "parley2024" / "maps"
 

@@ -2,7 +2,7 @@
 
 Per case study, the ideal point of the quotient's relaxation as an MDP (its schedulers see
 the true state) and as a POMDP whose observations are the decisions a state consults,
-over-approximated by Storm's belief discretization (:mod:`parley_core.belief`), for each
+over-approximated by Storm's belief discretization (:mod:`parley_core.optimality.belief`), for each
 objective Storm's belief exploration takes (unbounded reachability probabilities and
 rewards); then the default run's gap to the Pareto outer approximation built on each ideal
 point (same front, same reference point).
@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from parley_core import metrics
-from parley_core.belief import belief_ideal
-from parley_core.bound import ideal_point, pareto_outer
+from parley_core.optimality.belief import belief_ideal
+from parley_core.optimality.bound import ideal_point, pareto_outer
 from parley_core.pipeline import prepare, run
-from parley_core.plugins import load_registry
+from parley_core.plugin.manager import load_registry
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import build_quotient
 from parley_core.search import SearchSettings

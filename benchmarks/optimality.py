@@ -42,9 +42,9 @@ import numpy as np
 from parley_core import metrics
 from parley_core.boxes import Box
 from parley_core.evaluate.quotient import QuotientEvaluator
-from parley_core.exact import branch_and_bound
+from parley_core.optimality.branch_and_bound import branch_and_bound
 from parley_core.pipeline import Prepared, prepare, run
-from parley_core.plugins import load_registry
+from parley_core.plugin.manager import load_registry
 from parley_core.quotient.coloring import build_quotient
 from parley_core.quotient.solver import QuotientSolver
 from parley_core.search import SearchSettings

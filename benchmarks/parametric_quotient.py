@@ -20,7 +20,7 @@ import stormpy
 import stormpy.pars
 
 from parley_core.pipeline import prepare
-from parley_core.plugins import load_registry
+from parley_core.plugin.manager import load_registry
 from parley_core.prism import program as prism
 from parley_core.prism import rewrite
 

@@ -25,10 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from parley_core import metrics
+from parley_core.family.scenarios import ScenarioSet
 from parley_core.pipeline import prepare, prepare_scenarios, run
-from parley_core.plugins import load_registry
+from parley_core.plugin.manager import load_registry
 from parley_core.robust import worst
-from parley_core.scenarios import ScenarioSet
 from parley_core.search import SearchSettings
 from parley_core.verify import storm_verifier
 

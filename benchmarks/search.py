@@ -164,7 +164,7 @@ def exact_front(instance: dict, pool: ProcessPoolExecutor) -> np.ndarray:
         front = values[metrics.nondominated(values, directions)]
         what = f"{size} policies enumerated"
     else:
-        from parley_core.exact import branch_and_bound
+        from parley_core.optimality.branch_and_bound import branch_and_bound
         from parley_core.quotient.coloring import build_quotient
         from parley_core.quotient.solver import QuotientSolver
 

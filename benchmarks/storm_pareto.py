@@ -21,9 +21,9 @@ import time
 import numpy as np
 
 from parley_core import metrics
-from parley_core.bound import pareto_outer
+from parley_core.optimality.bound import pareto_outer
+from parley_core.optimality.storm_pareto import storm_pareto
 from parley_core.quotient.coloring import build_quotient
-from parley_core.storm_pareto import storm_pareto
 from parley_core.testing import family as make_family
 
 CASES = [

@@ -11,7 +11,7 @@ from attrs import frozen
 
 from parley_core import metrics
 from parley_core.pipeline import RunResult, prepare, run
-from parley_core.plugins import load_registry
+from parley_core.plugin.manager import load_registry
 from parley_core.search import SearchSettings
 
 

@@ -27,11 +27,11 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="parley-bench-") as scratch:
         os.environ["PARLEY_CACHE"] = str(Path(scratch) / "cache")
         from parley_core.pipeline import prepare, run
-        from parley_core.plugins import load_registry
+        from parley_core.plugin.manager import load_registry
         from parley_core.progress import NullReporter
-        from parley_core.report import write_run
+        from parley_core.rundir.write import write_run
         from parley_core.search import SearchSettings
-        from parley_core.validate import validate
+        from parley_core.simulation.validate import validate
 
         case = load_registry().get("turtlebot")
         rows = []

@@ -33,7 +33,7 @@ import numpy as np
 from parley_core.evaluate.batch import BATCH_STATES, BatchStormEvaluator
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.pipeline import prepare, run
-from parley_core.plugins import load_registry
+from parley_core.plugin.manager import load_registry
 from parley_core.prism import program as prism
 from parley_core.search import SearchSettings
 from parley_core.testing import family as make_family

@@ -21,7 +21,7 @@ import numpy as np
 from parley_core import metrics
 from parley_core.model import Policy
 from parley_core.pipeline import prepare, run
-from parley_core.plugins import load_registry
+from parley_core.plugin.manager import load_registry
 from parley_core.search import SearchSettings
 
 MAP = Path(__file__).resolve().parents[2] / "shared" / "reference" / "parley2024" / "maps" / "map_10.csv"

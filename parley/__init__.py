@@ -30,7 +30,7 @@ from parley_core.api import __all__ as _api
 from parley_core.constraints import Constraint
 from parley_core.errors import ModelError, OptionError, OutputError, ParleyDefect, ParleyError, PolicyError, SearchError
 from parley_core.model import Front, Objective, Policy, Valued
-from parley_core.urc import URC
+from parley_core.urc.controller import URC
 
 __all__ = [
     *_api,

@@ -1,6 +1,6 @@
 """Boxes of a family: per decision an interval of positions in its domain.
 
-Branch and bound (:mod:`parley_core.exact`) hands whole boxes to an evaluator that can
+Branch and bound (:mod:`parley_core.optimality.branch_and_bound`) hands whole boxes to an evaluator that can
 enumerate them where the policies are solved (the quotient's workers), so that only each
 box's own non-dominated values travel back: a box of 4,096 web_ids policies returns a few
 dozen rows instead of 4,096.
@@ -77,7 +77,7 @@ def box_rows(box: Box, domains: list[np.ndarray]) -> np.ndarray:
 def local_front(values: np.ndarray, signs: np.ndarray) -> np.ndarray:
     """Indices of the rows no other row weakly dominates in sign space (of equal values the
     first), NaN rows left out: exactly the rows that could enter a branch and bound archive
-    that already holds the others (:class:`parley_core.exact.Archive` rejects what it weakly
+    that already holds the others (:class:`parley_core.optimality.branch_and_bound.Archive` rejects what it weakly
     dominates)."""
     values = np.asarray(values, dtype=float).reshape(-1, len(signs))
     finite = ~np.isnan(values).any(axis=1)

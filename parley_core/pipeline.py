@@ -3,7 +3,7 @@
 Each stage is timed and announced to a :class:`~parley_core.progress.Reporter` (the CLI
 draws progress bars from it); nothing here prints. Verification re-checks every front
 policy with Storm unless the search already used Storm, so every reported value is Storm's.
-The run directory is written from the :class:`RunResult` by :mod:`parley_core.report`.
+The run directory is written from the :class:`RunResult` by :mod:`parley_core.rundir.write`.
 """
 
 from __future__ import annotations
@@ -17,22 +17,23 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from attrs import field, frozen
 
-from parley_core import metrics, robust, run_bounds
-from parley_core.augment import augment
-from parley_core.casestudy import CaseStudy
+from parley_core import metrics, robust
 from parley_core.constraints import meets
 from parley_core.errors import OptionError, SearchError
 from parley_core.evaluate import Evaluator, EvaluatorKind, make_evaluator
 from parley_core.evaluate.cache import CachingEvaluator
+from parley_core.family.augment import augment
+from parley_core.family.scenarios import ScenarioSet
 from parley_core.model import Family, Front, Policy, SystemModel, Valued
+from parley_core.optimality import after_search as run_bounds
+from parley_core.plugin.casestudy import CaseStudy
 from parley_core.progress import NullReporter, Reporter
 from parley_core.robust import ScenarioModel
-from parley_core.scenarios import ScenarioSet
 from parley_core.search import SearchResult, SearchSettings, configuration, search
 from parley_core.verify import Verification, VerifyPath, by_search, check_with_storm, not_checked
 
 if TYPE_CHECKING:
-    from parley_core.bound import Bound
+    from parley_core.optimality.bound import Bound
 
 
 @frozen(kw_only=True)
@@ -191,13 +192,13 @@ def run(
 
     ``bound``: "pareto" (default) an outer approximation of the Pareto curve of the
     quotient's relaxation, "ideal" its ideal point, "belief" the outer approximation on the
-    ideal point of the relaxation read as a POMDP (:mod:`parley_core.belief`): certified outer bounds of the family
-    (:mod:`parley_core.bound`); "refine" runs branch
-    and bound over the decisions' ranges after the search (:mod:`parley_core.exact`) for at
+    ideal point of the relaxation read as a POMDP (:mod:`parley_core.optimality.belief`): certified outer bounds of the family
+    (:mod:`parley_core.optimality.bound`); "refine" runs branch
+    and bound over the decisions' ranges after the search (:mod:`parley_core.optimality.branch_and_bound`) for at
     most ``bound_time`` seconds (None: until the front is proven exact), whose policies join
     the front and whose open sub-families make the bound; "none" skips it. With "belief",
     ``bound_time`` limits Storm's belief exploration per objective (None:
-    :data:`parley_core.belief.SECONDS`).
+    :data:`parley_core.optimality.belief.SECONDS`).
 
     ``warm``: policies (an earlier front, say for other numbers of the model) the search
     starts from besides the baselines (a warm start, :func:`parley_core.search.run.initial_population`).
@@ -318,7 +319,7 @@ def run(
     )
     found = None
     if refined is not None and outer is not None:
-        from parley_core.bound import intersect, refined_bound
+        from parley_core.optimality.bound import intersect, refined_bound
 
         found = refined_bound(family, refined)
         if not found.exact:

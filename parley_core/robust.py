@@ -1,6 +1,6 @@
 """Robust runs: one family per scenario, each policy scored by its worst case over them.
 
-A scenario set (:mod:`parley_core.scenarios`) changes a model's numbers, not its structure:
+A scenario set (:mod:`parley_core.family.scenarios`) changes a model's numbers, not its structure:
 every scenario's quotient must have the same states, choices and transitions as the first
 one's (:func:`check_structure`), and the same decisions and objectives, so that one policy
 means the same thing in each. The search sees the worst value per objective (the smallest
@@ -21,9 +21,9 @@ from attrs import field, frozen
 
 from parley_core.errors import OptionError
 from parley_core.evaluate import EvaluatorKind
+from parley_core.family.scenarios import Scenario, ScenarioSet
 from parley_core.model import Direction, Family, Objective, SystemModel
 from parley_core.progress import NullReporter, Progress, Reporter
-from parley_core.scenarios import Scenario, ScenarioSet
 
 
 @frozen(kw_only=True)
@@ -259,7 +259,7 @@ def check_scenarios(
 
 def bound(models: Sequence[ScenarioModel], engine: WorstCaseEvaluator, method: str, outer):
     """Every scenario's bound (``outer(family, engine, method)``), intersected."""
-    from parley_core.bound import intersect
+    from parley_core.optimality.bound import intersect
 
     found, seconds = None, 0.0
     for model, part in zip(models, engine.engines):

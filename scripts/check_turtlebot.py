@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from parley_core.augment import augment
-from parley_core.plugins import load_registry
+from parley_core.family.augment import augment
+from parley_core.plugin.manager import load_registry
 from parley_core.testing import storm_values
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -9,15 +9,15 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from parley_core.adaptive import AdaptiveController, Estimator
 from parley_core.cli import app
-from parley_core.drift import Drift, simulate_drift
 from parley_core.errors import OptionError, PolicyError
 from parley_core.model import Policy
 from parley_core.pipeline import prepare
-from parley_core.plugins import load_registry
-from parley_core.policies import table
-from parley_core.urc import URC
+from parley_core.plugin.manager import load_registry
+from parley_core.rundir.policies import table
+from parley_core.simulation.drift import Drift, simulate_drift
+from parley_core.urc.adaptive import AdaptiveController, Estimator
+from parley_core.urc.controller import URC
 from parley_plugins.robot_grid.events import SLIP, wrong_probability
 
 QUICK = {"size": "5", "seed": "1", "max_interval": "4", "horizon": "45"}
@@ -256,7 +256,7 @@ def test_cli_warm_start_needs_a_run_of_the_same_family(tmp_path):
 
 
 def test_the_calibration_counts_the_models_events(robot_family, tmp_path):
-    from parley_core.drift import calibrate
+    from parley_core.simulation.drift import calibrate
 
     family = robot_family
     urcs = [_urc(family, [3] * len(family.decisions), "every-3"), _urc(family, [1] * len(family.decisions), "every-1")]

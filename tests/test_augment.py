@@ -7,9 +7,9 @@ import stormpy
 from conftest import TOY, storm_values, toy_system
 
 from parley_core import DecisionKind, Service
-from parley_core.augment import augment
 from parley_core.errors import ModelError
 from parley_core.evaluate.storm import StormEvaluator
+from parley_core.family.augment import augment
 from parley_core.model import Policy
 
 FORMULAS = ['R{"cost"}=? [C<=10]', 'P=? [F<=3 !"healthy"]']

@@ -17,14 +17,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from test_quotient import OBJECTIVES, STUCK, breaking_system, synchronised_system
 
-from parley_core.augment import augment
 from parley_core.evaluate.batch import BatchChecker, BatchStormEvaluator, BatchTask
 from parley_core.evaluate.storm import StormEvaluator
+from parley_core.family.augment import augment
+from parley_core.family.usermodel import system_from_file
 from parley_core.model import DecisionKind, Objective, Service
 from parley_core.prism import program as prism
 from parley_core.prism.policy import INDEX, dispatch_policy, policy_template, tree
 from parley_core.testing import family as make
-from parley_core.usermodel import system_from_file
 
 TUTORIAL = Path(__file__).resolve().parents[1] / "docs" / "tutorial"
 
@@ -284,7 +284,7 @@ def test_front_policies_agree_with_the_reference(case, assignments):
     # a search's front is not a random sample: its policies localise or scan often, and
     # reach other and more states
     from parley_core.pipeline import prepare, run
-    from parley_core.plugins import load_registry
+    from parley_core.plugin.manager import load_registry
     from parley_core.search import SearchSettings
 
     study = load_registry().get(case)

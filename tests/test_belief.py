@@ -16,14 +16,14 @@ from test_bound import _families
 from test_foreign import MODELS, _paths
 from typer.testing import CliRunner
 
-from parley_core.belief import belief_ideal, belief_query
-from parley_core.bound import ideal_point
 from parley_core.cli import app
+from parley_core.family.usermodel import system_from_file
 from parley_core.model import DecisionKind, Direction, Objective, Service
+from parley_core.optimality.belief import belief_ideal, belief_query
+from parley_core.optimality.bound import ideal_point
 from parley_core.pipeline import make_family
 from parley_core.quotient.coloring import build_quotient
 from parley_core.testing import family, values
-from parley_core.usermodel import system_from_file
 
 # a coin the URC cannot see: at o=1 it must guess the side, which the true state knows
 GUESS = """dtmc

@@ -15,13 +15,13 @@ from conftest import toy_system
 from test_quotient import OBJECTIVES, STUCK, breaking_system, synchronised_system
 from typer.testing import CliRunner
 
-from parley_core.bound import ideal_point, pareto_outer
 from parley_core.cli import app
+from parley_core.family.usermodel import system_from_file
 from parley_core.model import DecisionKind, Direction, Objective, Service
+from parley_core.optimality.bound import ideal_point, pareto_outer
+from parley_core.optimality.storm_pareto import storm_pareto
 from parley_core.quotient.coloring import build_quotient
-from parley_core.storm_pareto import storm_pareto
 from parley_core.testing import family, values
-from parley_core.usermodel import system_from_file
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 

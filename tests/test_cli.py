@@ -237,7 +237,7 @@ def test_where_stderr_is_no_terminal_a_line_tells_how_far_a_stage_is(monkeypatch
 
     from rich.console import Console
 
-    from parley_core import richprogress
+    from parley_core.views import richprogress
 
     out = io.StringIO()
     monkeypatch.setattr(richprogress, "LOG_EVERY", 0.0)

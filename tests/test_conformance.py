@@ -6,7 +6,7 @@ from __future__ import annotations
 import stormpy
 
 from parley_core.pipeline import run
-from parley_core.report import write_run
+from parley_core.rundir.write import write_run
 from parley_core.search import SearchSettings
 from parley_core.testing.suite import ConformanceSuite
 
@@ -24,7 +24,7 @@ def test_a_failing_policy_plot_costs_only_the_plot(toy, tmp_path):
 
     from parley_core import CaseStudy
     from parley_core.pipeline import Prepared
-    from parley_core.report import PLOT_ERROR
+    from parley_core.rundir.write import PLOT_ERROR
     from parley_core.testing import family
 
     @frozen

@@ -16,12 +16,12 @@ from test_quotient import OBJECTIVES, breaking_system, synchronised_system
 from typer.testing import CliRunner
 
 from parley_core import metrics
-from parley_core.archive import Archive, region_points, robust_front
-from parley_core.bound import refined_bound
 from parley_core.boxes import Box, box_rows, local_front
 from parley_core.cli import app
 from parley_core.evaluate.quotient import QuotientEvaluator
-from parley_core.exact import branch_and_bound
+from parley_core.optimality.archive import Archive, region_points, robust_front
+from parley_core.optimality.bound import refined_bound
+from parley_core.optimality.branch_and_bound import branch_and_bound
 from parley_core.pipeline import make_family
 from parley_core.quotient.coloring import build_quotient
 from parley_core.quotient.solver import QuotientSolver
@@ -358,7 +358,7 @@ def test_a_time_limit_is_kept_when_policies_are_slow(monkeypatch):
     # batches of 65,536 policies once kept it 20 minutes past its limit)
     import time
 
-    from parley_core import exact
+    from parley_core.optimality import branch_and_bound as exact
 
     monkeypatch.setattr(exact, "BATCH_SECONDS", 0.1)
     fam = narrow("web_ids", ["rounds=6"], 4)

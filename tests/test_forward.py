@@ -13,7 +13,7 @@ from test_quotient import breaking_system, synchronised_system
 
 from parley_core.boxes import Box, box_rows
 from parley_core.evaluate.quotient import QuotientEvaluator, _domain_table
-from parley_core.exact import branch_and_bound
+from parley_core.optimality.branch_and_bound import branch_and_bound
 from parley_core.quotient.coloring import build_quotient
 from parley_core.quotient.forward import BoxWalker
 from parley_core.quotient.solver import QuotientSolver

@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 from attrs import field, frozen, validators
 
-from parley_core.casestudy import CaseStudy
 from parley_core.errors import OptionError
-from parley_core.options import options_as_dict, parse_assignments
+from parley_core.plugin.casestudy import CaseStudy
+from parley_core.plugin.options import options_as_dict, parse_assignments
 
 
 @frozen(kw_only=True)

@@ -15,7 +15,7 @@ import pytest
 
 from parley_core import CaseStudy, hookimpl
 from parley_core.errors import PluginError, UnknownCaseStudyError
-from parley_core.plugins import load_registry, plugin_manager
+from parley_core.plugin.manager import load_registry, plugin_manager
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -44,7 +44,7 @@ def test_a_misspelt_hook_is_an_error_naming_the_hooks():
     module.parley_case_study = parley_case_study
     pm = plugin_manager(entry_points=False)
     pm.register(module, name="misspelt")
-    from parley_core.plugins import check_hooks
+    from parley_core.plugin.manager import check_hooks
 
     with pytest.raises(
         PluginError, match=r"plugin misspelt implements a hook parley does not know .*parley_case_studies"

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from parley_core.augment import augment
 from parley_core.errors import PolicyError
+from parley_core.family.augment import augment
 from parley_core.model import Policy
-from parley_core.policies import long_csv, read_policies, table, wide_csv
+from parley_core.rundir.policies import long_csv, read_policies, table, wide_csv
 
 
 @pytest.fixture

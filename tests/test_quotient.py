@@ -11,9 +11,9 @@ from conftest import TOY, toy_system
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from parley_core.augment import augment
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.evaluate.storm import StormEvaluator
+from parley_core.family.augment import augment
 from parley_core.model import DecisionKind, Objective, Service
 from parley_core.quotient.coloring import build_quotient
 from parley_core.quotient.solver import QuotientSolver

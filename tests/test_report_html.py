@@ -132,10 +132,10 @@ def test_campaign_report_in_a_browser(browser, tmp_path):
     page.page.wait_for_timeout(200)
     assert page.page.evaluate("() => Bokeh.documents[0].get_model_by_name('setting').value") == other
     # the page now shows that setting's boxes, as the report's own statistics give them
+    from parley_core.experiment.page import boxes
     from parley_core.experiment.report import analyze
     from parley_core.experiment.store import Store
-    from parley_core.interactive.campaign_page import boxes
-    from parley_core.plugins import load_registry
+    from parley_core.plugin.manager import load_registry
 
     case = load_registry().get("robot_grid")
     with Store(store) as results:
@@ -150,7 +150,7 @@ def test_campaign_report_in_a_browser(browser, tmp_path):
 
 
 def test_stable_ids_renumber_bokeh_ids_but_not_data():
-    from parley_core.interactive.stable import stable_ids
+    from parley_core.views.stable import stable_ids
 
     page = (
         '<script>var lib = {"id":"p9"};</script>'

@@ -13,12 +13,12 @@ from typer.testing import CliRunner
 from parley_core.cli import app
 from parley_core.errors import OptionError
 from parley_core.evaluate.storm import StormEvaluator
+from parley_core.family.scenarios import ScenarioSet
+from parley_core.family.usermodel import override_constants
 from parley_core.pipeline import prepare, prepare_scenarios, run
-from parley_core.plugins import load_registry
+from parley_core.plugin.manager import load_registry
 from parley_core.robust import worst
-from parley_core.scenarios import ScenarioSet
 from parley_core.search import SearchSettings
-from parley_core.usermodel import override_constants
 
 QUICK = {"size": "5", "seed": "1", "max_interval": "4", "horizon": "45"}
 PUMP = Path(__file__).parent.parent / "docs" / "tutorial"

@@ -12,7 +12,7 @@ from attrs import field, frozen
 from parley_core.api.commands import DEFAULT_POPULATION, assignments_of, search_settings
 from parley_core.evaluate import EvaluatorKind
 from parley_core.progress import Reporter
-from parley_core.richprogress import reporting
+from parley_core.views.richprogress import reporting
 
 
 @frozen(kw_only=True)
@@ -52,7 +52,7 @@ class CampaignReport:
         return self.directory / "report.html"
 
     def _repr_html_(self) -> str:
-        from parley_core.interactive import inline
+        from parley_core.views import inline
 
         return inline(self.page.read_text(encoding="utf-8"), 900)
 
@@ -105,8 +105,8 @@ def campaign_report(
     from parley_core.errors import OptionError
     from parley_core.experiment import report as reports
     from parley_core.experiment.store import Store
-    from parley_core.plugins import load_registry
-    from parley_core.report import check_output
+    from parley_core.plugin.manager import load_registry
+    from parley_core.rundir.write import check_output
 
     store, out = existing_store(store), Path(out)
     if published is not None and not Path(published).is_dir():
@@ -164,7 +164,7 @@ def experiment(
     it again resumes, skipping finished runs."""
     from parley_core.experiment.campaign import Budget, describe, execute, instances_from, plan
     from parley_core.experiment.store import Store
-    from parley_core.plugins import load_registry
+    from parley_core.plugin.manager import load_registry
 
     study = load_registry().get(case)
     fixed = assignments_of(options or {})

@@ -21,7 +21,7 @@ from parley_core.constraints import Constraint
 from parley_core.errors import OptionError
 from parley_core.evaluate import EvaluatorKind
 from parley_core.progress import Reporter
-from parley_core.richprogress import reporting
+from parley_core.views.richprogress import reporting
 
 DEFAULT_POPULATION = 100
 
@@ -71,10 +71,10 @@ def prepare_case(
     case_name: str, assignments: Sequence[str] | None, reporter=None, scenarios: Sequence[str] | None = None
 ):
     """The case study's prepared run; with ``scenarios`` (``--scenarios`` values), a robust one."""
-    from parley_core.options import parse_assignments
+    from parley_core.family.scenarios import ScenarioSet
     from parley_core.pipeline import prepare, prepare_scenarios
-    from parley_core.plugins import load_registry
-    from parley_core.scenarios import ScenarioSet
+    from parley_core.plugin.manager import load_registry
+    from parley_core.plugin.options import parse_assignments
 
     case = load_registry().get(case_name)
     if scenarios is not None:
@@ -240,9 +240,9 @@ def synthesis_preparer(
     scenarios: Sequence[str] | None,
 ) -> Callable[[Reporter], Any]:
     """What prepares a user model's run (a robust one with ``scenarios``)."""
+    from parley_core.family.scenarios import ScenarioSet
+    from parley_core.family.usermodel import FileOptions, case_study_for, system_from_file
     from parley_core.pipeline import prepare, prepare_scenarios
-    from parley_core.scenarios import ScenarioSet
-    from parley_core.usermodel import FileOptions, case_study_for, system_from_file
 
     specs = decision_specs(decisions)
 
@@ -291,7 +291,7 @@ def execute(
 ) -> Run:
     """Prepare, search, verify and write a run; returns it (shared by every command here)."""
     from parley_core.pipeline import run as run_pipeline
-    from parley_core.report import check_output, write_run
+    from parley_core.rundir.write import check_output, write_run
     from parley_core.verify import VerifyPath
 
     kind = EvaluatorKind.of(evaluator)
@@ -302,7 +302,7 @@ def execute(
     prepared = prepare_with(reporter)
     warm = []
     if warm_start is not None:
-        from parley_core.policies import read_policies
+        from parley_core.rundir.policies import read_policies
 
         if not (warm_start / "policies.csv").is_file():
             raise OptionError(f"--warm-start {warm_start}: no policies.csv there; give a run directory")

@@ -10,16 +10,16 @@ from pathlib import Path
 from typing import Any
 
 from parley_core.api.commands import assignments_of, decision_specs, prepare_case
-from parley_core.casestudy import CaseStudy
 from parley_core.evaluate import EvaluatorKind
 from parley_core.model import Family, Policy, Valued
+from parley_core.plugin.casestudy import CaseStudy
 from parley_core.progress import Reporter
-from parley_core.richprogress import reporting
+from parley_core.views.richprogress import reporting
 
 
 def case_studies() -> dict[str, CaseStudy]:
     """Every registered case study by name (built in and from installed plugins)."""
-    from parley_core.plugins import load_registry
+    from parley_core.plugin.manager import load_registry
 
     found = load_registry()
     return {name: found.case_studies[name] for name in found.names}
@@ -41,7 +41,7 @@ def evaluate(
     policy that uses ``constant`` everywhere."""
     from parley_core.evaluate import make_evaluator
     from parley_core.pipeline import evaluate as evaluate_policies
-    from parley_core.policies import policies_or_constant
+    from parley_core.rundir.policies import policies_or_constant
 
     kind = EvaluatorKind.of(evaluator)
     assignments = assignments_of({**(options or {}), **more_options})
@@ -98,8 +98,8 @@ def augmented_family(
     model: str | Path, decisions: Mapping[str, tuple[int, int] | str] | Sequence[str], observe: Sequence[str] = ()
 ) -> Family:
     """A PRISM DTMC's family, kept to the observation valuations that consult a service."""
+    from parley_core.family.usermodel import system_from_file
     from parley_core.pipeline import make_family
-    from parley_core.usermodel import system_from_file
 
     return make_family(system_from_file(Path(model), decision_specs(decisions), list(observe)), prune=True)
 
@@ -113,7 +113,7 @@ def augment(
 ) -> str:
     """The parametric model of a PRISM DTMC: one decision constant per service and
     reachable observation valuation (``format``: prism, evochecker or paynt)."""
-    from parley_core.augment import export
+    from parley_core.family.augment import export
 
     check_format(format)
     return export(augmented_family(model, decisions, observe), format)

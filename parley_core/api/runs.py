@@ -18,19 +18,19 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from attrs import field, frozen
 
-from parley_core import rundir
 from parley_core.constraints import Constraint
 from parley_core.model import Front, Objective, Policy, Valued
-from parley_core.urc import URC
+from parley_core.rundir import read as rundir
+from parley_core.urc.controller import URC
 from parley_core.verify import Verification
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from parley_core.pipeline import RunResult
+    from parley_core.plugin.simulator import Estimate
     from parley_core.progress import Reporter
-    from parley_core.simulator import Estimate
-    from parley_core.validate import Validation
+    from parley_core.simulation.validate import Validation
 
 
 def _mapping(value: Mapping[str, Any]) -> Mapping[str, Any]:
@@ -114,7 +114,7 @@ class Selection:
 
     def controller(self) -> URC:
         """The runtime URC of this policy (what ``parley select`` writes; ``.save(path)``)."""
-        from parley_core.selection import controller
+        from parley_core.rundir.select import controller
 
         return controller(self.run.files, self.policy.name)
 
@@ -131,12 +131,12 @@ class Page:
         """The page (made now from the run directory if it has no report.html)."""
         if self.path.is_file():
             return self.path.read_text(encoding="utf-8")
-        from parley_core.interactive.run_page import render
+        from parley_core.rundir.page import render
 
         return render(self.run)
 
     def _repr_html_(self) -> str:
-        from parley_core.interactive import inline
+        from parley_core.views import inline
 
         return inline(self.html(), self.height)
 
@@ -164,7 +164,7 @@ class Run:
     def select(self, constraints: Iterable[str | Constraint] = (), prefer: str | None = None) -> Selection:
         """The best front policy on ``prefer`` among those meeting ``constraints`` (ties and
         no ``prefer``: the knee of those), as ``parley select`` picks it."""
-        from parley_core.selection import select
+        from parley_core.rundir.select import select
 
         parsed = tuple(c if isinstance(c, Constraint) else Constraint.parse(c) for c in constraints)
         return self._selection(select(self.files, parsed, prefer))
@@ -185,8 +185,8 @@ class Run:
         """``parley simulate``: a front policy (its name, a :class:`Selection`, or the knee)
         in Storm's simulator; per objective an estimate with its 99 % interval next to the
         model-checked value (or a sentence saying why it cannot be simulated)."""
-        from parley_core.simulate import simulate
-        from parley_core.usermodel import family_of_run
+        from parley_core.family.usermodel import family_of_run
+        from parley_core.simulation.storm import simulate
 
         name = self.summary.selected if policy is None else policy.name if isinstance(policy, Selection) else policy
         return simulate(family_of_run(self.files), self.policy(name).values, episodes, seed, max_steps)
@@ -202,15 +202,15 @@ class Run:
     ) -> Validation:
         """``parley validate``: the policy (and the baselines) in closed loop on the case
         study's simulator (turtlebot: MuJoCo), against Storm's values."""
-        from parley_core.richprogress import reporting
-        from parley_core.validate import validate
+        from parley_core.simulation.validate import validate
+        from parley_core.views.richprogress import reporting
 
         with reporting(progress) as reporter:
             return validate(self.directory, policy, episodes, seed, baselines, reporter)
 
     def plot(self) -> Figure:
         """The front against the baseline and the bound, as ``front.png`` (a matplotlib Figure)."""
-        from parley_core.frontplot import front_figure
+        from parley_core.views.frontplot import front_figure
 
         names = [p.name for p in self.front.policies]
         return front_figure(

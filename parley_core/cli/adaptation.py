@@ -28,13 +28,13 @@ def simulate_drift_command(
     out: Path | None,
     json_: bool,
 ) -> None:
-    from parley_core import rundir
-    from parley_core.adaptive import load_controller
     from parley_core.cli.common import registry
     from parley_core.cli.console import RichReporter, stderr
-    from parley_core.drift import Drift, simulate_drift
-    from parley_core.drift_report import plot, to_json
-    from parley_core.usermodel import family_of_run
+    from parley_core.family.usermodel import family_of_run
+    from parley_core.rundir import read as rundir
+    from parley_core.simulation.drift import Drift, simulate_drift
+    from parley_core.simulation.drift_report import plot, to_json
+    from parley_core.urc.adaptive import load_controller
 
     drift = Drift.parse(spec)
     if not target.is_dir():
@@ -133,9 +133,9 @@ def adapt_command(
 ) -> None:
     """An adaptive URC: from each run (one value of a drifting parameter each) the policy `parley select` would
     pick, switched at runtime to the most likely value's; the first run's value is in force at the start."""
-    from parley_core import rundir
-    from parley_core.adaptive import AdaptiveController, Estimator
-    from parley_core.selection import controller, select
+    from parley_core.rundir import read as rundir
+    from parley_core.rundir.select import controller, select
+    from parley_core.urc.adaptive import AdaptiveController, Estimator
 
     if len(runs) < 2:
         raise OptionError("give two or more run directories, one per value of the parameter")
@@ -167,8 +167,8 @@ def adapt_command(
     if calibration:
         from parley_core.cli.common import registry
         from parley_core.cli.console import RichReporter, stderr
-        from parley_core.drift import calibrate
-        from parley_core.usermodel import family_of_run
+        from parley_core.family.usermodel import family_of_run
+        from parley_core.simulation.drift import calibrate
 
         case = registry().case_studies.get(str(first.summary.get("case_study", "")))
         events = case.events.get(parameter) if case is not None else None

@@ -8,9 +8,9 @@ import sys
 import typer
 
 from parley_core.api.commands import prepare_case, search_settings  # noqa: F401  (re-exported for the commands)
-from parley_core.casestudy import CaseStudy
 from parley_core.constraints import Constraint
 from parley_core.errors import ParleyDefect, ParleyError
+from parley_core.plugin.casestudy import CaseStudy
 
 USER_ERROR = 2
 """The exit status of an error the user can fix (a ParleyError)."""
@@ -37,7 +37,7 @@ def user_errors(command):
 
 
 def registry():
-    from parley_core.plugins import load_registry
+    from parley_core.plugin.manager import load_registry
 
     return load_registry()
 

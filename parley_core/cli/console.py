@@ -6,10 +6,10 @@ from typing import Any
 
 from rich.table import Table
 
-from parley_core.casestudy import CaseStudy
 from parley_core.model import Valued
-from parley_core.options import options_as_dict
-from parley_core.richprogress import RichReporter, progress_bars, stderr  # noqa: F401  (re-exported)
+from parley_core.plugin.casestudy import CaseStudy
+from parley_core.plugin.options import options_as_dict
+from parley_core.views.richprogress import RichReporter, progress_bars, stderr  # noqa: F401  (re-exported)
 
 
 def fmt(value: float) -> str:

@@ -35,8 +35,8 @@ def select_command(
 ) -> None:
     """Pick one policy from a front (best on an objective under constraints, or the knee) and write it as a
     controller."""
-    from parley_core import rundir
-    from parley_core.selection import controller, select
+    from parley_core.rundir import read as rundir
+    from parley_core.rundir.select import controller, select
 
     if prefer is not None and knee:
         raise OptionError("give --prefer NAME or --knee, not both")
@@ -97,8 +97,8 @@ def simulate_command(
     """Simulate a policy with Storm's simulator; print empirical values with 99% intervals next to the
     model-checked ones. With --drift: fixed, robust and adaptive controllers mission after mission while a
     parameter drifts."""
-    from parley_core.policies import policy_from_file
-    from parley_core.simulate import simulate
+    from parley_core.rundir.policies import policy_from_file
+    from parley_core.simulation.storm import simulate
 
     if drift is not None:
         from parley_core.cli.adaptation import simulate_drift_command
@@ -149,10 +149,10 @@ def simulate_command(
 def _simulated_family(target: Path, policy: Path, props: Path | None):
     """The family a simulation runs on: a run directory's, or a user's model augmented
     with the controller file's services and observation."""
-    from parley_core import rundir
-    from parley_core.simulate import family_for_controller
-    from parley_core.urc import URC
-    from parley_core.usermodel import family_of_run
+    from parley_core.family.usermodel import family_of_run
+    from parley_core.rundir import read as rundir
+    from parley_core.simulation.storm import family_for_controller
+    from parley_core.urc.controller import URC
 
     if target.is_dir():
         if props is not None:
@@ -185,7 +185,7 @@ def validate_command(
     """Run a policy (and the baselines) in closed loop on the case study's simulator (turtlebot: MuJoCo) and set
     the empirical values with 99% intervals next to Storm's; writes RUN_DIR/validation.json and validation.png."""
     from parley_core.cli.console import RichReporter, stderr
-    from parley_core.validate import plot, validate
+    from parley_core.simulation.validate import plot, validate
 
     with RichReporter(stderr()) as reporter:
         result = validate(run_dir, policy, episodes, seed, baselines, reporter)
@@ -237,7 +237,7 @@ def report_command(
 ) -> None:
     """Write the interactive report.html of a run directory (again, or for one written before it existed)."""
     from parley_core.api.runs import load
-    from parley_core.interactive.run_page import REPORT, render
+    from parley_core.rundir.page import REPORT, render
 
     target = out or run_dir / REPORT
     page = render(load(run_dir))

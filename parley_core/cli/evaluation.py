@@ -32,7 +32,7 @@ def evaluate_command(
 ) -> None:
     """Evaluate policies and print their objective values."""
     from parley_core.api.evaluation import evaluate
-    from parley_core.options import parse_assignments
+    from parley_core.plugin.options import parse_assignments
 
     kind = EvaluatorKind.of(evaluator)
     options = parse_assignments(set_ or [])

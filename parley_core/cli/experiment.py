@@ -75,7 +75,7 @@ def experiment_run(
 ) -> None:
     """Run a campaign; rerunning the same command resumes it, skipping finished runs."""
     from parley_core.api.campaigns import experiment
-    from parley_core.options import parse_assignments
+    from parley_core.plugin.options import parse_assignments
 
     outcome = experiment(
         case,

@@ -67,7 +67,7 @@ def run_command(
 ) -> None:
     """Synthesize a URC: search for Pareto-optimal policies, verify them with Storm, write a run directory."""
     from parley_core.api.commands import run
-    from parley_core.options import parse_assignments
+    from parley_core.plugin.options import parse_assignments
 
     options = parse_assignments(set_ or [])
     _synthesize(
@@ -114,7 +114,7 @@ def exact_command(
     decisions' ranges until no sub-family can hold a better policy (or --time-limit: the front
     and bound so far, with the gap); a run directory like `parley run`'s."""
     from parley_core.api.commands import exact
-    from parley_core.options import parse_assignments
+    from parley_core.plugin.options import parse_assignments
 
     options = parse_assignments(set_ or [])
     _synthesize(
@@ -214,7 +214,7 @@ def _stopped(by: str) -> str:
 def _synthesize(make, warm_start: Path | None = None) -> None:
     """Make a run with ``make(reporter)`` (the API's ``run``, ``exact`` or ``synthesize``)
     under progress bars, then print it."""
-    from parley_core.report import MAP_ERROR, PLOT_ERROR, REPORT_ERROR, summary
+    from parley_core.rundir.write import MAP_ERROR, PLOT_ERROR, REPORT_ERROR, summary
     from parley_core.verify import TOLERANCE, Verified
 
     console = Console()
@@ -337,7 +337,7 @@ def augment_command(
 ) -> None:
     """Write the parametric model: one decision constant per service and reachable observation valuation."""
     from parley_core.api.evaluation import augmented_family, check_format
-    from parley_core.augment import export
+    from parley_core.family.augment import export
 
     check_format(format_)
     if out is not None and out.exists() and not force:

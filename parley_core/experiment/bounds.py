@@ -14,8 +14,8 @@ from attrs import frozen
 from parley_core.errors import OptionError
 from parley_core.evaluate.pool import default_workers, spawn_pool
 from parley_core.experiment.store import Store
+from parley_core.optimality.after_search import METHODS, family_bound
 from parley_core.progress import Progress
-from parley_core.run_bounds import METHODS, family_bound
 
 
 @frozen(kw_only=True)
@@ -30,7 +30,7 @@ class BoundTask:
 def compute(task: BoundTask) -> tuple[BoundTask, np.ndarray, str, float]:
     """One instance's bound (in this process: campaigns parallelize over instances)."""
     from parley_core.pipeline import prepare
-    from parley_core.plugins import load_registry
+    from parley_core.plugin.manager import load_registry
     from parley_core.prism.program import quiet_storm
 
     quiet_storm()  # in a worker process this is the entry point

@@ -20,12 +20,12 @@ from typing import Any
 import numpy as np
 from attrs import asdict, evolve, field, frozen
 
-from parley_core.casestudy import CaseStudy
 from parley_core.errors import OptionError
 from parley_core.evaluate import EvaluatorKind
 from parley_core.evaluate.pool import default_workers, spawn_pool
 from parley_core.experiment.store import RunRecord, Store, front_from_json
-from parley_core.options import options_as_dict, parse_assignments
+from parley_core.plugin.casestudy import CaseStudy
+from parley_core.plugin.options import options_as_dict, parse_assignments
 from parley_core.progress import Progress
 from parley_core.search import SearchSettings
 from parley_core.search import default as search_default
@@ -155,7 +155,7 @@ def plan(
 def run_spec(spec: RunSpec) -> RunRecord:
     """Run one campaign run in this process (one worker: campaigns parallelize over runs)."""
     from parley_core.pipeline import prepare, run
-    from parley_core.plugins import load_registry
+    from parley_core.plugin.manager import load_registry
     from parley_core.prism.program import quiet_storm
 
     quiet_storm()  # on a Dask worker this is the entry point
@@ -292,7 +292,7 @@ def verify_record(case_name: str, record: RunRecord) -> RunRecord:
     non-dominated policies among them, and record the largest difference."""
     from parley_core import metrics
     from parley_core.pipeline import prepare
-    from parley_core.plugins import load_registry
+    from parley_core.plugin.manager import load_registry
     from parley_core.verify import check_with_storm
 
     case = load_registry().get(case_name)

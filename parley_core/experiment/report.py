@@ -29,14 +29,14 @@ import numpy as np
 from attrs import frozen
 
 from parley_core import metrics
-from parley_core.casestudy import CaseStudy
 from parley_core.errors import OptionError
 from parley_core.experiment import bounds as instance_bounds
 from parley_core.experiment.stats import compare
 from parley_core.experiment.store import RunRecord
 from parley_core.experiment.table2 import rows_csv, table2_cells, table2_document
 from parley_core.model import Direction
-from parley_core.plotting import figure, save
+from parley_core.plugin.casestudy import CaseStudy
+from parley_core.views.plotting import figure, save
 
 Setting = tuple[float, ...]
 
@@ -247,7 +247,7 @@ def write_report(
     (out / "table2.csv").write_text(rows_csv(rows, names))
     caption = ", ".join(f"{h} {b:g}" for h, b in zip(header, figure_setting))
     figures = box_plots(rows, figure_setting, caption, out / "gains")
-    from parley_core.interactive import campaign_page
+    from parley_core.experiment import page as campaign_page
 
     page = campaign_page.render(
         rows,

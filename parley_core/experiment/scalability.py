@@ -19,11 +19,11 @@ from typing import Any
 
 import numpy as np
 
-from parley_core.casestudy import CaseStudy
 from parley_core.evaluate.batch import BatchStormEvaluator
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.pipeline import make_family
+from parley_core.plugin.casestudy import CaseStudy
 from parley_core.progress import Progress
 from parley_core.search import SearchSettings, search
 from parley_core.search import default as search_default
@@ -118,7 +118,7 @@ def table3_markdown(rows: Sequence[dict[str, Any]]) -> str:
 
 
 def _measure_by_name(case_name: str, assignments: Sequence[str], kwargs: dict[str, Any]) -> dict[str, Any]:
-    from parley_core.plugins import load_registry
+    from parley_core.plugin.manager import load_registry
 
     return measure(load_registry().get(case_name), assignments, **kwargs)
 

@@ -63,7 +63,7 @@ class RunRecord:
     repetition: int
     seed: int
     options: dict[str, Any]
-    """The case study's options in JSON form (:func:`parley_core.options.options_as_dict`)."""
+    """The case study's options in JSON form (:func:`parley_core.plugin.options.options_as_dict`)."""
     objectives: tuple[Objective, ...] = field(converter=tuple[Objective, ...])
     front: Valued
     """The front's policies (decision values; named p1, p2, ... in stored order) and values."""

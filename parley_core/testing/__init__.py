@@ -22,8 +22,8 @@ from collections.abc import Iterable, Mapping, Sequence
 import attrs
 import numpy as np
 
-from parley_core.casestudy import CaseStudy
 from parley_core.model import Family, Policy, SystemModel
+from parley_core.plugin.casestudy import CaseStudy
 
 
 def storm_values(
@@ -59,7 +59,7 @@ def storm_values(
 
 def case_study(name: str) -> CaseStudy:
     """An installed case study by name (built-in or from an entry point)."""
-    from parley_core.plugins import load_registry
+    from parley_core.plugin.manager import load_registry
 
     return load_registry().get(name)
 

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from parley_core import metrics
-from parley_core.casestudy import CaseStudy
 from parley_core.pipeline import Prepared, prepare, run
+from parley_core.plugin.casestudy import CaseStudy
 from parley_core.prism import program as prism
 from parley_core.search import SearchSettings
 from parley_core.testing import storm_values
@@ -79,7 +79,7 @@ def check_baselines(prepared: Prepared, count: int = 3) -> None:
 def check_search(prepared: Prepared, directory: Path, settings: SearchSettings = TINY) -> None:
     """A tiny search gives a non-empty, mutually non-dominated front no worse than the
     baselines in hypervolume; its run directory, read back, holds values Storm confirms."""
-    from parley_core.report import hypervolume, write_run
+    from parley_core.rundir.write import hypervolume, write_run
 
     name = prepared.case.name
     result = run(prepared, settings, workers=1)

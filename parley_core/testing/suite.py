@@ -43,7 +43,7 @@ class ConformanceSuite:
             if names is None:
                 names = metafunc.config.getoption("parley_case", default=None) or None
             if names is None:
-                from parley_core.plugins import load_registry
+                from parley_core.plugin.manager import load_registry
 
                 names = load_registry().names
             metafunc.parametrize("parley_case_name", names, scope="class")

@@ -3,7 +3,7 @@
 A node is a sub-family (per decision an interval of its domain). Its bound, on the
 quotient's relaxation (:mod:`parley_core.quotient.bounds`), is the ideal point of its
 schedulers and a few weighted sums (half-spaces): every policy of the node lies in that
-region. The archive of evaluated values (:mod:`parley_core.archive`) is kept with its
+region. The archive of evaluated values (:mod:`parley_core.optimality.archive`) is kept with its
 *local upper bounds*: the corners u whose open orthants ``{v > u}`` make up exactly the
 points no archived value weakly dominates. A node none of whose region reaches beyond a
 corner holds no policy with a new value, and is pruned. Where the bounds know their
@@ -39,9 +39,9 @@ from collections.abc import Callable
 import numpy as np
 from attrs import field, frozen
 
-from parley_core.archive import Archive, depth, region_points, robust_front
 from parley_core.boxes import FLOOR, Box, BoxValues, Pending, Ready, box_rows, local_front
 from parley_core.model import Family
+from parley_core.optimality.archive import Archive, depth, region_points, robust_front
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 

@@ -1,6 +1,6 @@
 """The bounds a run computes after its search: the cheap certified outer bound of the
-family (:mod:`parley_core.bound`, :mod:`parley_core.belief`) and branch and bound over the
-decisions' ranges (:mod:`parley_core.exact`), seeded with what the search evaluated."""
+family (:mod:`parley_core.optimality.bound`, :mod:`parley_core.optimality.belief`) and branch and bound over the
+decisions' ranges (:mod:`parley_core.optimality.branch_and_bound`), seeded with what the search evaluated."""
 
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ METHODS = ("pareto", "ideal", "belief")
 """The cheap bounds :func:`outer` computes."""
 
 if TYPE_CHECKING:
-    from parley_core.bound import Bound
     from parley_core.evaluate import Evaluator
+    from parley_core.optimality.bound import Bound
     from parley_core.search import SearchResult
 
 
@@ -31,7 +31,7 @@ def outer(family: Family, engine: Evaluator | None, method: str, seconds: float 
     after the ideal point is tightened on the relaxation read as a POMDP, Storm's belief
     exploration stopped after ``seconds`` per objective) and the family's relaxed objectives
     it was computed on, for branch and bound to reuse."""
-    from parley_core.bound import ideal_point, pareto_outer
+    from parley_core.optimality.bound import ideal_point, pareto_outer
     from parley_core.quotient.bounds import RelaxedObjectives
     from parley_core.quotient.coloring import build_quotient
 
@@ -44,7 +44,7 @@ def outer(family: Family, engine: Evaluator | None, method: str, seconds: float 
         return found, bounds
     if method == "pareto":
         return pareto_outer(family, quotient, found, bounds), bounds
-    from parley_core.belief import belief_ideal
+    from parley_core.optimality.belief import belief_ideal
 
     found = belief_ideal(family, quotient, bounds, ideal=found, seconds=seconds)  # the relaxation as a POMDP
     cut = pareto_outer(family, quotient, found, bounds)
@@ -57,7 +57,7 @@ def refine(family: Family, engine: Evaluator, result: SearchResult, seconds: flo
     """Branch and bound after the search, seeded with everything the search evaluated and
     started from the cheap bound's half-spaces (``cheap``: what :func:`outer` returns); with
     the seeds' values as branch and bound took them (:meth:`QuotientEvaluator.box_seeds`)."""
-    from parley_core.exact import branch_and_bound
+    from parley_core.optimality.branch_and_bound import branch_and_bound
 
     found, bounds = cheap
     steps = 1000

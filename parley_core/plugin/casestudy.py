@@ -9,13 +9,13 @@ from typing import Any
 import attrs
 from attrs import field, frozen, validators
 
-from parley_core.adaptive import EventModel
 from parley_core.errors import OptionError
 from parley_core.model import SystemModel
-from parley_core.options import convert, parse_assignments
-from parley_core.policymap import PolicyMap
+from parley_core.plugin.options import convert, parse_assignments
+from parley_core.plugin.policymap import PolicyMap
+from parley_core.plugin.simulator import Simulator
 from parley_core.progress import Reporter
-from parley_core.simulator import Simulator
+from parley_core.urc.adaptive import EventModel
 
 
 class PolicyTable(Mapping[tuple[int, ...], Mapping[str, int]]):
@@ -65,11 +65,11 @@ class CaseStudy:
     announcing it as a stage of ``reporter`` so the CLI draws a progress bar. ``build``
     must not depend on it having run: library callers may call ``build`` alone."""
     simulator: Simulator | None = None
-    """Optionally, a closed-loop simulator of the system (:class:`parley_core.simulator.Simulator`):
+    """Optionally, a closed-loop simulator of the system (:class:`parley_core.plugin.simulator.Simulator`):
     ``parley validate RUN_DIR`` runs a run's policies on it against Storm's values."""
     events: Mapping[str, EventModel] = field(factory=dict, converter=dict)
     """Optionally, by option name, what the system observes about a drifting parameter
-    (:class:`parley_core.adaptive.EventModel`: which transitions are trials, how likely
+    (:class:`parley_core.urc.adaptive.EventModel`: which transitions are trials, how likely
     their outcomes are under each value): an adaptive URC (``parley adapt``) switches policy
     by it, and ``parley simulate --drift`` runs it (robot_grid: localisations that find the
     estimate wrong tell about the slip probability ``p``)."""
@@ -78,7 +78,7 @@ class CaseStudy:
     path)``. A failing plot costs only the plot (the run says why in policy-plot-error.txt)."""
     policy_map: Callable[[SystemModel], PolicyMap] | None = None
     """Optionally, the map the interactive report draws a policy on
-    (:class:`parley_core.policymap.PolicyMap`: axes, obstacles, start and target), from the
+    (:class:`parley_core.plugin.policymap.PolicyMap`: axes, obstacles, start and target), from the
     built system; without one, the report's grid shows the first two observation variables."""
     quick: Mapping[str, str] = field(factory=dict, converter=dict)
     """Option values (``--set`` strings) for a small instance that builds and searches in
@@ -135,6 +135,6 @@ class CaseStudy:
             raise OptionError(f"{self.name}: {exc}") from None
 
     def options_from_json(self, values: Mapping[str, Any]) -> Any:
-        """Options from the JSON form :func:`parley_core.options.options_as_dict` writes
+        """Options from the JSON form :func:`parley_core.plugin.options.options_as_dict` writes
         (a run's summary.json, a campaign store)."""
         return self.options_from({k: "none" if v is None else str(v) for k, v in values.items()})

@@ -12,7 +12,7 @@ minimised one.
 
 Storm answers only unbounded reachability probabilities (``P [F psi]``) and expected
 reachability rewards (``R [F psi]``) this way; every other objective keeps the MDP's value
-(:func:`parley_core.bound.ideal_point`). A step-bounded reward (``C<=k``: robot_grid's cost,
+(:func:`parley_core.optimality.bound.ideal_point`). A step-bounded reward (``C<=k``: robot_grid's cost,
 every objective of web_ids and tas) would need the step counter unfolded into the POMDP.
 
 Storm's belief exploration has no time limit of its own and does not answer Ctrl-C; on a
@@ -30,8 +30,8 @@ import time
 
 import numpy as np
 
-from parley_core.bound import PRECISION, Bound, ideal_point, relaxation_queries, sound_environment
 from parley_core.model import Direction, Family
+from parley_core.optimality.bound import PRECISION, Bound, ideal_point, relaxation_queries, sound_environment
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.relaxation import storm_model
@@ -48,7 +48,7 @@ _REWARD = re.compile(r'^R\{"[^"]+"\}(?:max|min)=\? \[F "[^"]+"\]$')
 
 
 def belief_query(query: str | None) -> str | None:
-    """The relaxation's query (:func:`parley_core.bound.relaxation_queries`) as Storm's
+    """The relaxation's query (:func:`parley_core.optimality.bound.relaxation_queries`) as Storm's
     belief exploration takes it, or None where it takes no such query."""
     if query is None:
         return None
@@ -105,7 +105,7 @@ def belief_ideal(
     ideal: Bound | None = None,
     seconds: float | None = None,
 ) -> Bound:
-    """The ideal point (``ideal``, else :func:`~parley_core.bound.ideal_point`), each objective
+    """The ideal point (``ideal``, else :func:`~parley_core.optimality.bound.ideal_point`), each objective
     Storm's belief exploration answers within ``seconds`` (default :data:`SECONDS`) replaced by
     the POMDP's over-approximation where that is tighter (widened by the solver's precision);
     ``details`` holds both values per objective, or the MDP's and why Storm gave none."""

@@ -23,11 +23,11 @@ import io
 from collections.abc import Iterable
 from pathlib import Path
 
-from parley_core.casestudy import PolicyTable
 from parley_core.errors import PolicyError
 from parley_core.files import read_text
 from parley_core.model import Family, Policy
-from parley_core.urc import URC
+from parley_core.plugin.casestudy import PolicyTable
+from parley_core.urc.controller import URC
 
 
 def read_policies(path: Path, family: Family) -> list[Policy]:

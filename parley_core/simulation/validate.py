@@ -24,9 +24,9 @@ from attrs import field, frozen
 
 from parley_core.errors import OptionError
 from parley_core.model import SystemModel
+from parley_core.plugin.simulator import Z99, Episodes, Estimate, wilson
 from parley_core.progress import NullReporter, Reporter
-from parley_core.simulator import Z99, Episodes, Estimate, wilson
-from parley_core.urc import URC
+from parley_core.urc.controller import URC
 
 
 def estimate_json(e: Estimate) -> dict[str, Any]:
@@ -118,9 +118,9 @@ def validate(
     """Run the chosen policy (``knee``, a front policy's name, or its row in front.csv
     counting from 1) and
     the baselines of a run directory on the case study's simulator (module docstring)."""
-    from parley_core import rundir
-    from parley_core.plugins import load_registry
-    from parley_core.selection import controller, select
+    from parley_core.plugin.manager import load_registry
+    from parley_core.rundir import read as rundir
+    from parley_core.rundir.select import controller, select
 
     reporter = reporter or NullReporter()
     run = rundir.load(run_dir)
@@ -208,7 +208,7 @@ def plot(validation: Validation, path: Path) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from parley_core.plotting import save
+    from parley_core.views.plotting import save
 
     objectives = [e.objective for e in validation.policies[0].estimates]
     panels = len(objectives) + (validation.draw is not None)

@@ -4,12 +4,12 @@ hover, a click that shows the policy, and requirement sliders that filter the fr
 Bokeh's standalone documents (:func:`bokeh.embed.file_html` with the inline resources) make
 one self-contained, offline file: the views are linked by shared data sources and small
 CustomJS callbacks, without a server. The page is built from the run directory's files
-(a :class:`~parley_core.api.runs.Run`, which :mod:`parley_core.report` loads from the
+(a :class:`~parley_core.api.runs.Run`, which :mod:`parley_core.rundir.write` loads from the
 directory it has just written), so any run directory, old or new, gets the same page.
 
 The policy view: where the URC observes two variables or more, a grid over two of them
 coloured by each service's decision, on the plugin's map where it gives one
-(:mod:`parley_core.interactive.policy_grid`); for any case study, the decision table.
+(:mod:`parley_core.rundir.policy_grid`); for any case study, the decision table.
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ from typing import Any
 
 import numpy as np
 
-from parley_core.interactive.scripts import FILTER, SHOW_POLICY
-from parley_core.interactive.stable import stable_ids
 from parley_core.model import Direction
+from parley_core.views.bokeh_scripts import FILTER, SHOW_POLICY
+from parley_core.views.stable import stable_ids
 
 Run = Any
 """A :class:`parley_core.api.runs.Run` (not imported: the API imports this module)."""
@@ -134,7 +134,7 @@ def render(run: Run) -> str:
     if run.optimality is not None and len(names) > 1:
         bound = np.array(run.optimality.points, dtype=float).reshape(-1, len(names))
         if len(bound) and np.isfinite(bound).all():
-            from parley_core.frontplot import staircase
+            from parley_core.views.frontplot import staircase
 
             signs = -np.array([objectives[i].direction.sign, objectives[j].direction.sign])
             reference = np.array([run.summary.reference[i], run.summary.reference[j]])
@@ -208,7 +208,7 @@ def render(run: Run) -> str:
         width=420,
     )
     views: list[Any] = [heading]
-    from parley_core.interactive.policy_grid import grids
+    from parley_core.rundir.policy_grid import grids
 
     views += grids(run, table_source, columns)
     views.append(table)

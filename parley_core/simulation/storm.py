@@ -27,10 +27,10 @@ import stormpy.simulator as storm_simulator
 from parley_core.errors import ModelError
 from parley_core.evaluate.storm import StormChecker, StormTask
 from parley_core.model import Family
+from parley_core.plugin.simulator import Z99, Estimate, wilson
 from parley_core.prism import program as prism
 from parley_core.prism.properties import Shape, shape
-from parley_core.simulator import Z99, Estimate, wilson
-from parley_core.urc import URC
+from parley_core.urc.controller import URC
 
 _Reach = tuple[Literal["reach"], str, np.ndarray, int | None, float]
 """A probability to estimate: objective, phi states, step bound (None: none), checked value."""
@@ -41,8 +41,8 @@ _Reward = tuple[Literal["reward"], str, int, int, float]
 def family_for_controller(model: Path, controller: URC, props: Path) -> Family:
     """A user's model augmented with a controller's services and observation (as `parley
     synthesize` augmented it), for simulating the controller on it."""
+    from parley_core.family.usermodel import system_from_file
     from parley_core.pipeline import make_family
-    from parley_core.usermodel import system_from_file
 
     system = system_from_file(model, controller.services, [",".join(controller.observation)], props)
     return make_family(system, prune=True)

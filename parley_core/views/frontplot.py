@@ -1,5 +1,5 @@
 """The front against the baseline (and the bound) as a matplotlib figure, from plain arrays:
-the run directory's ``front.png`` (:mod:`parley_core.report`) and ``Run.plot()`` of the
+the run directory's ``front.png`` (:mod:`parley_core.rundir.write`) and ``Run.plot()`` of the
 :mod:`parley` library draw the same picture from the same numbers."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from parley_core.model import Direction, Objective
-from parley_core.plotting import figure
+from parley_core.views.plotting import figure
 
 
 def front_figure(

@@ -1,6 +1,6 @@
 """The report's policy view on a map: a grid over two observation variables, each cell
 coloured by the decision there, for the policy shown (the data source it shares with the
-decision table). With the plugin's map (``map.json``, :class:`parley_core.policymap.PolicyMap`)
+decision table). With the plugin's map (``map.json``, :class:`parley_core.plugin.policymap.PolicyMap`)
 the axes are the map's, obstacles are dark and the start and target are labelled; any other
 observation variable (turtlebot's heading) gets a menu that picks the slice shown."""
 
@@ -10,8 +10,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from parley_core.interactive.scripts import SLICE
-from parley_core.policymap import PolicyMap
+from parley_core.plugin.policymap import PolicyMap
+from parley_core.views.bokeh_scripts import SLICE
 
 
 def read_map(directory: Path) -> PolicyMap | None:

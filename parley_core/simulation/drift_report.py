@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from parley_core.drift import DriftResult
+from parley_core.simulation.drift import DriftResult
 
 
 def to_json(result: DriftResult) -> dict[str, Any]:
@@ -54,7 +54,7 @@ def plot(result: DriftResult, path) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from parley_core.plotting import save
+    from parley_core.views.plotting import save
 
     rows = len(result.objectives) + 1
     fig = Figure(figsize=(7.5, 2.4 * rows))

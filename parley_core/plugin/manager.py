@@ -11,9 +11,9 @@ from typing import cast
 import pluggy
 from attrs import field, frozen
 
-from parley_core import hookspecs
-from parley_core.casestudy import CaseStudy
 from parley_core.errors import PluginError, UnknownCaseStudyError
+from parley_core.plugin import hookspecs
+from parley_core.plugin.casestudy import CaseStudy
 
 BUILTIN_PACKAGE = "parley_plugins"
 """The package of the built-in case studies: each sub-package defining a hook is a plugin."""

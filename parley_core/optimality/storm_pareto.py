@@ -1,12 +1,12 @@
 """Storm's own multi-objective Pareto query on the quotient's relaxation: a second view of
-the curve that the kernels' outer bound (:func:`parley_core.bound.pareto_outer`) covers.
+the curve that the kernels' outer bound (:func:`parley_core.optimality.bound.pareto_outer`) covers.
 
 Storm's multi-objective model checking (``multi(...)``, its PCAA method) accepts the
 relaxation's objectives, step-bounded cumulative rewards included, and answers with two
 polytopes: an *under*-approximation, spanned by values that schedulers of the relaxation
 reach, and an *over*-approximation of what they can reach. The under-approximation's vertices are points some relaxed scheduler achieves
 (to Storm's precision), so every sound outer bound of the relaxation weakly dominates them:
-the tests hold :func:`~parley_core.bound.pareto_outer`'s staircase, computed by parley's own
+the tests hold :func:`~parley_core.optimality.bound.pareto_outer`'s staircase, computed by parley's own
 backward induction, against this independent implementation. Storm's over-approximation is
 not used as a bound: its weighted sums come from value iteration that bounds no error.
 """
@@ -18,9 +18,9 @@ import time
 import numpy as np
 from attrs import field, frozen
 
-from parley_core.bound import relaxation_queries
 from parley_core.errors import ModelError
 from parley_core.model import Family
+from parley_core.optimality.bound import relaxation_queries
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.relaxation import storm_model

@@ -7,12 +7,12 @@ mission 40, ``p=0.01:0.03@20-60`` ramps linearly from mission 20 to 60 (in at mo
 parameter's value at that mission, built by Storm from the run's model.prism with the
 parameter's constant set (so the drift needs the parameter to be a constant of the model)
 and sampled here from Storm's transition matrix, ``episodes`` independent systems at once.
-A fixed URC keeps its policy; an adaptive one (:mod:`parley_core.adaptive`) observes the
-events its case study's :class:`~parley_core.adaptive.EventModel` reads off each transition
+A fixed URC keeps its policy; an adaptive one (:mod:`parley_core.urc.adaptive`) observes the
+events its case study's :class:`~parley_core.urc.adaptive.EventModel` reads off each transition
 and may switch policy between missions. Per mission and controller, the result holds each
 objective's mean over the systems with a 99 % interval, and Storm's value of every
 (policy, parameter value) pair, which the missions at a constant value must agree with.
-The missions are sampled by :mod:`parley_core.missions`; :mod:`parley_core.drift_report`
+The missions are sampled by :mod:`parley_core.simulation.missions`; :mod:`parley_core.simulation.drift_report`
 writes drift.json and drift.png.
 """
 
@@ -25,13 +25,13 @@ from collections.abc import Sequence
 import numpy as np
 from attrs import field, frozen
 
-from parley_core.adaptive import AdaptiveController, Beliefs, Calibration, EventModel
 from parley_core.errors import OptionError
-from parley_core.missions import Chain, Observer, build_chain, policy_values, run_mission
 from parley_core.model import Family
+from parley_core.plugin.simulator import Z99, wilson
 from parley_core.progress import NullReporter, Reporter
-from parley_core.simulator import Z99, wilson
-from parley_core.urc import URC
+from parley_core.simulation.missions import Chain, Observer, build_chain, policy_values, run_mission
+from parley_core.urc.adaptive import AdaptiveController, Beliefs, Calibration, EventModel
+from parley_core.urc.controller import URC
 
 RAMP_LEVELS = 9
 """A ramp takes at most this many distinct values (one DTMC per policy and value)."""
@@ -293,7 +293,7 @@ def calibrate(
     max_steps: int = 10_000,
     reporter: Reporter | None = None,
 ) -> Calibration:
-    """The model's predictions of the events (:class:`~parley_core.adaptive.Calibration`):
+    """The model's predictions of the events (:class:`~parley_core.urc.adaptive.Calibration`):
     every policy's DTMC at every value (Storm builds it from ``families[i]``, the run of
     ``values[i]``, with the constant set), ``missions`` missions each, outcomes counted per context."""
     reporter = reporter or NullReporter()

@@ -23,15 +23,15 @@ import numpy as np
 from attrs import field, frozen
 
 from parley_core import metrics
-from parley_core.archive import staircase
 from parley_core.model import Direction, Family, Objective
+from parley_core.optimality.archive import staircase
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.compile import KernelKind, KernelObjective
 from parley_core.quotient.relaxation import storm_model
 
 if TYPE_CHECKING:
-    from parley_core.exact import ExactResult
+    from parley_core.optimality.branch_and_bound import ExactResult
 
 PRECISION = 1e-9
 """Sound value iteration's precision on the relaxation: absolute for probabilities, relative

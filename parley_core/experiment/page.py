@@ -1,7 +1,7 @@
 """A campaign's ``report.html``: Table 2 and, for a requirement setting chosen on the page,
 the box plots of every instance's hypervolume and spread gains over the baseline (Fig. 4),
 with hover showing the instance, the median gain and the verdict. One self-contained Bokeh
-standalone document, as a run's page (:mod:`parley_core.interactive.run_page`)."""
+standalone document, as a run's page (:mod:`parley_core.rundir.page`)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from parley_core.interactive.scripts import CHOOSE_SETTING
-from parley_core.interactive.stable import stable_ids
+from parley_core.views.bokeh_scripts import CHOOSE_SETTING
+from parley_core.views.stable import stable_ids
 
 Row = Any
 """A :class:`parley_core.experiment.report.Row` (not imported: that module imports this one)."""

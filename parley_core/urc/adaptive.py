@@ -37,7 +37,7 @@ import numpy as np
 from attrs import field, frozen, validators
 
 from parley_core.errors import ObservationError, ParleyError, PolicyError
-from parley_core.urc import URC, read_document
+from parley_core.urc.controller import URC, read_document
 
 FORMAT = "parley-adaptive-urc/1"
 

@@ -1,7 +1,7 @@
 """A plugin's closed-loop simulator and what its episodes give (value objects), and the
 99 % intervals that ``parley validate`` and ``parley simulate`` set next to Storm's values.
 
-:class:`Simulator` is a :class:`~parley_core.CaseStudy` field; :mod:`parley_core.validate`
+:class:`Simulator` is a :class:`~parley_core.CaseStudy` field; :mod:`parley_core.simulation.validate`
 runs it (this module imports nothing of the pipeline, so the case study contract does not).
 """
 
@@ -16,7 +16,7 @@ from attrs import field, frozen
 
 from parley_core.model import SystemModel
 from parley_core.progress import Progress
-from parley_core.urc import URC
+from parley_core.urc.controller import URC
 
 Z99 = 2.5758293035489004
 """The standard normal quantile of 0.995."""

@@ -21,13 +21,13 @@ from typing import Any
 import numpy as np
 
 from parley_core import metrics
-from parley_core import policies as policy_files
 from parley_core.errors import OutputError
-from parley_core.frontplot import front_figure
 from parley_core.model import Valued
-from parley_core.options import options_as_dict
 from parley_core.pipeline import RunResult
-from parley_core.plotting import save
+from parley_core.plugin.options import options_as_dict
+from parley_core.rundir import policies as policy_files
+from parley_core.views.frontplot import front_figure
+from parley_core.views.plotting import save
 
 
 def check_output(out: Path, force: bool) -> None:
@@ -332,7 +332,7 @@ def _policy_map(case, result: RunResult, staging: Path) -> None:
 def _interactive_report(staging: Path) -> None:
     """report.html, from the files already written; a failure costs the page, not the run."""
     from parley_core.api.runs import load
-    from parley_core.interactive import run_page
+    from parley_core.rundir import page as run_page
 
     try:
         (staging / run_page.REPORT).write_text(run_page.render(load(staging)), encoding="utf-8")

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import pluggy
 
-from parley_core.casestudy import CaseStudy
+from parley_core.plugin.casestudy import CaseStudy
 
 PROJECT = "parley"
 
@@ -28,7 +28,7 @@ hookimpl = pluggy.HookimplMarker(PROJECT)
 def parley_case_studies() -> list[CaseStudy]:  # type: ignore[empty-body]  # a hookspec: only its signature is used
     """Return the case studies this plugin provides.
 
-    Each is a :class:`~parley_core.casestudy.CaseStudy`; its fields (name, options, build,
+    Each is a :class:`~parley_core.plugin.casestudy.CaseStudy`; its fields (name, options, build,
     plot, quick options, requirement settings, pruning) are documented once, in that class.
 
     Two plugins returning the same name is an error naming both. The hook is called once per

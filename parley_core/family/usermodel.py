@@ -24,10 +24,10 @@ from pathlib import Path
 import attrs
 from attrs import field, frozen
 
-from parley_core.casestudy import CaseStudy
 from parley_core.errors import ModelError, OptionError, ParleyDefect
 from parley_core.files import read_text
 from parley_core.model import Baseline, Decision, DecisionKind, Direction, Family, Objective, Service, SystemModel
+from parley_core.plugin.casestudy import CaseStudy
 from parley_core.prism import program as prism
 from parley_core.prism import rewrite, sandbox
 

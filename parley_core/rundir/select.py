@@ -9,8 +9,8 @@ import numpy as np
 from parley_core import metrics
 from parley_core.constraints import Constraint, meets
 from parley_core.errors import OptionError
-from parley_core.rundir import RunDirectory
-from parley_core.urc import URC
+from parley_core.rundir.read import RunDirectory
+from parley_core.urc.controller import URC
 
 
 def select(run: RunDirectory, constraints: Sequence[Constraint] = (), prefer: str | None = None) -> str:
