@@ -19,9 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from parley_core import metrics
+from parley_core.family.prepare import prepare
 from parley_core.optimality.belief import belief_ideal
 from parley_core.optimality.bound import ideal_point, pareto_outer
-from parley_core.pipeline import prepare, run
+from parley_core.pipeline import run
 from parley_core.plugin.manager import load_registry
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import build_quotient
@@ -66,15 +67,15 @@ def main() -> int:
             outer = pareto_outer(fam, quotient, ideal, bounds)
             volume = outer.hypervolume(result.reference)
             gaps.append(f"{100 * (volume - front) / volume:.2f}%")
-        answered = pomdp.details["belief"]
+        answered = pomdp.belief or {}
         if not answered:
             print(
                 f"| {label} | - (no objective Storm's belief exploration takes) | | | {seconds:.1f} | {gaps[0]} | {gaps[1]} |"
             )
         for objective, both in answered.items():
-            pomdp_text = f"{both['pomdp']:.6g}" if "pomdp" in both else f"Storm refused: {both['error']}"
+            pomdp_text = f"{both.pomdp:.6g}" if both.pomdp is not None else f"Storm refused: {both.error}"
             print(
-                f"| {label} | {objective} | {both['mdp']:.6g} | {pomdp_text} | {seconds:.1f} | {gaps[0]} | {gaps[1]} |",
+                f"| {label} | {objective} | {both.mdp:.6g} | {pomdp_text} | {seconds:.1f} | {gaps[0]} | {gaps[1]} |",
                 flush=True,
             )
     return 0

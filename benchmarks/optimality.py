@@ -42,8 +42,9 @@ import numpy as np
 from parley_core import metrics
 from parley_core.boxes import Box
 from parley_core.evaluate.quotient import QuotientEvaluator
+from parley_core.family.prepare import Prepared, prepare
 from parley_core.optimality.branch_and_bound import branch_and_bound
-from parley_core.pipeline import Prepared, prepare, run
+from parley_core.pipeline import run
 from parley_core.plugin.manager import load_registry
 from parley_core.quotient.coloring import build_quotient
 from parley_core.quotient.solver import QuotientSolver
@@ -198,7 +199,7 @@ def full_table(time_limit: float, enumerate_too: bool, seeds: int) -> None:
         result = run(prep, SearchSettings(seed=1), bound="refine", bound_time=time_limit)
         seconds = time.perf_counter() - start
         assert result.bound is not None
-        details = result.bound.details
+        counts = result.bound.search
         front = np.array(result.front.values)
         same, enum_text, each, ratio = "not enumerated", "-", "-", "-"
         if enumerate_too:
@@ -213,7 +214,7 @@ def full_table(time_limit: float, enumerate_too: bool, seeds: int) -> None:
             each = f"{enumeration * 2 / size * 1e6:.0f}"
         print(
             f"| {label} | {size} | {seconds:.1f} | {'yes' if result.bound.exact else 'no'} | {len(front)} | "
-            f"{details.get('nodes', '-')} | {details.get('pruned', '-')} | {details.get('evaluated', '-')} | "
+            f"{counts.nodes if counts else '-'} | {counts.pruned if counts else '-'} | {counts.evaluated if counts else '-'} | "
             f"{enum_text} | {each} | {ratio} | {same} |",
             flush=True,
         )
@@ -244,8 +245,9 @@ def gap_table(bound_time: float) -> None:
             if mode == "pareto":
                 row.append(f"{result.bound.seconds:.1f}")
             elif mode == "refine":
-                details = result.bound.details
-                row += [str(details["nodes"]), str(details["pruned"]), str(details["evaluated"])]
+                counts = result.bound.search
+                assert counts is not None
+                row += [str(counts.nodes), str(counts.pruned), str(counts.evaluated)]
         print("| " + " | ".join(row) + " |", flush=True)
 
 
@@ -273,11 +275,12 @@ def robot_table(seconds: float) -> None:
             front_hv = metrics.hypervolume(np.array(result.front.values), directions, result.reference)
             bound_hv = result.bound.hypervolume(result.reference)
             gaps.append(f"{100 * (bound_hv - front_hv) / bound_hv:.2f}%")
-        details = result.bound.details
+        counts = result.bound.search
+        assert counts is not None
         print(
             f"| {label} | {len(prep.family.decisions)} | {size:.2e} | {gaps[0]} | {gaps[1]} | "
-            f"{'yes' if result.bound.exact else 'no'} | {details['nodes']} | {details['pruned']} | "
-            f"{details['evaluated']} | {wall:.0f} |",
+            f"{'yes' if result.bound.exact else 'no'} | {counts.nodes} | {counts.pruned} | "
+            f"{counts.evaluated} | {wall:.0f} |",
             flush=True,
         )
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import stormpy
 import stormpy.pars
 
-from parley_core.pipeline import prepare
+from parley_core.family.prepare import prepare
 from parley_core.plugin.manager import load_registry
 from parley_core.prism import program as prism
 from parley_core.prism import rewrite

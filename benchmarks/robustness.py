@@ -25,8 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from parley_core import metrics
+from parley_core.family.prepare import prepare, prepare_scenarios
 from parley_core.family.scenarios import ScenarioSet
-from parley_core.pipeline import prepare, prepare_scenarios, run
+from parley_core.pipeline import run
 from parley_core.plugin.manager import load_registry
 from parley_core.robust import worst
 from parley_core.search import SearchSettings

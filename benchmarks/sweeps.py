@@ -10,7 +10,8 @@ import numpy as np
 from attrs import frozen
 
 from parley_core import metrics
-from parley_core.pipeline import RunResult, prepare, run
+from parley_core.family.prepare import prepare
+from parley_core.pipeline import RunResult, run
 from parley_core.plugin.manager import load_registry
 from parley_core.search import SearchSettings
 

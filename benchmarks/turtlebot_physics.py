@@ -26,7 +26,8 @@ def main() -> None:
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="parley-bench-") as scratch:
         os.environ["PARLEY_CACHE"] = str(Path(scratch) / "cache")
-        from parley_core.pipeline import prepare, run
+        from parley_core.family.prepare import prepare
+        from parley_core.pipeline import run
         from parley_core.plugin.manager import load_registry
         from parley_core.progress import NullReporter
         from parley_core.rundir.write import write_run

@@ -32,7 +32,8 @@ import numpy as np
 
 from parley_core.evaluate.batch import BATCH_STATES, BatchStormEvaluator
 from parley_core.evaluate.storm import StormEvaluator
-from parley_core.pipeline import prepare, run
+from parley_core.family.prepare import prepare
+from parley_core.pipeline import run
 from parley_core.plugin.manager import load_registry
 from parley_core.prism import program as prism
 from parley_core.search import SearchSettings

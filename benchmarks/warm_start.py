@@ -19,8 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from parley_core import metrics
+from parley_core.family.prepare import prepare
 from parley_core.model import Policy
-from parley_core.pipeline import prepare, run
+from parley_core.pipeline import run
 from parley_core.plugin.manager import load_registry
 from parley_core.search import SearchSettings
 

@@ -240,6 +240,13 @@ class SystemModel:
         raise ModelError(f"unknown objective {name!r}; valid: {', '.join(o.name for o in self.objectives)}")
 
 
+def identifier(stem: str) -> str:
+    """A family name made from a file stem or a case study's name: lower case, letters,
+    digits and underscores, starting with a letter."""
+    name = "".join(ch if ch.isalnum() else "_" for ch in stem.lower()) or "model"
+    return name if name[0].isalpha() else f"m_{name}"
+
+
 def decision_name(constant: str, valuation: tuple[int, ...]) -> str:
     """The decision constant for ``constant`` at an observation valuation: ``c_3_4``, ``c_m2``;
     with no observation variables, the constant itself."""

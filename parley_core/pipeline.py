@@ -9,9 +9,7 @@ The run directory is written from the :class:`RunResult` by :mod:`parley_core.ru
 from __future__ import annotations
 
 import functools
-import time
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -20,126 +18,20 @@ from attrs import field, frozen
 from parley_core import metrics, robust
 from parley_core.constraints import meets
 from parley_core.errors import OptionError, SearchError
-from parley_core.evaluate import Evaluator, EvaluatorKind, make_evaluator
+from parley_core.evaluate import Evaluator, EvaluatorKind, evaluate_policies, make_evaluator
 from parley_core.evaluate.cache import CachingEvaluator
-from parley_core.family.augment import augment
-from parley_core.family.scenarios import ScenarioSet
-from parley_core.model import Family, Front, Policy, SystemModel, Valued
+from parley_core.family.prepare import Prepared
+from parley_core.family.scenarios import ScenarioModel
+from parley_core.model import Family, Front, Policy, Valued
 from parley_core.optimality import after_search as run_bounds
-from parley_core.plugin.casestudy import CaseStudy
-from parley_core.progress import NullReporter, Reporter
-from parley_core.robust import ScenarioModel
+from parley_core.optimality.records import BoundMethod, Stopped
+from parley_core.progress import NullReporter, Reporter, timed
 from parley_core.search import SearchResult, SearchSettings, configuration, search
 from parley_core.verify import Verification, VerifyPath, by_search, check_with_storm, not_checked
 
 if TYPE_CHECKING:
     from parley_core.optimality.bound import Bound
-
-
-@frozen(kw_only=True)
-class Prepared:
-    case: CaseStudy
-    options: Any
-    system: SystemModel
-    family: Family
-    timings: dict[str, float] = field(factory=dict)
-    scenarios: tuple[ScenarioModel, ...] = ()
-    """A robust run's scenarios (:mod:`parley_core.robust`); ``options``, ``system`` and
-    ``family`` are then the first scenario's. Empty: an ordinary run."""
-
-
-@contextmanager
-def _timed(timings: dict[str, float], name: str) -> Iterator[None]:
-    start = time.perf_counter()
-    try:
-        yield
-    finally:
-        timings[name] = timings.get(name, 0.0) + time.perf_counter() - start
-
-
-def make_family(system: SystemModel, *, prune: bool = False) -> Family:
-    """Augment ``system``; with ``prune``, only at the observation valuations where some
-    reachable state of some policy consults a service (found on the quotient MDP)."""
-    from parley_core.prism.properties import name_unnamed_rewards
-
-    system = name_unnamed_rewards(system)
-    family = augment(system)  # also checks the model before Storm builds its quotient
-    if prune:
-        from parley_core.quotient.mdp import build_mdp, consulted_valuations
-
-        kept = consulted_valuations(build_mdp(system))
-        if len(kept) < len(family.valuations):
-            family = augment(system, valuations=kept)
-    return family
-
-
-def prepare(case: CaseStudy, options: Any, reporter: Reporter | None = None) -> Prepared:
-    """Build the case study's system model and augment it (pruned if the case study asks)."""
-    reporter = reporter or NullReporter()
-    timings: dict[str, float] = {}
-    system, family = _build(case, options, reporter, timings)
-    if family.left_out:
-        reporter.note(f"{len(family.left_out)} observation valuations never consult a service and are left out")
-    for note in family.system.notes if family.system else ():
-        reporter.note(note)
-    return Prepared(case=case, options=options, system=system, family=family, timings=timings)
-
-
-def prepare_scenarios(
-    case: CaseStudy, assignments: dict[str, str], scenarios: ScenarioSet, reporter: Reporter | None = None
-) -> Prepared:
-    """A robust run's models: the case study built and augmented once per scenario (each
-    scenario's option values over ``assignments``, the run's ``--set``)."""
-    reporter = reporter or NullReporter()
-    timings: dict[str, float] = {}
-    models = []
-    for scenario, options in robust.scenario_options(case, assignments, scenarios):
-        system, family = _build(case, options, reporter, timings, f" ({scenario.label})")
-        models.append(ScenarioModel(scenario=scenario, options=options, system=system, family=family))
-    first = models[0]
-    if first.family.left_out:
-        reporter.note(f"{len(first.family.left_out)} observation valuations never consult a service and are left out")
-    return Prepared(
-        case=case,
-        options=first.options,
-        system=first.system,
-        family=first.family,
-        timings=timings,
-        scenarios=tuple(models),
-    )
-
-
-def _build(
-    case: CaseStudy, options: Any, reporter: Reporter, timings: dict[str, float], label: str = ""
-) -> tuple[SystemModel, Family]:
-    """The case study's system model for ``options`` (the augmented one's, with named
-    rewards) and its family."""
-    with _timed(timings, "build"):
-        if case.warm_up is not None:
-            case.warm_up(options, reporter)
-        reporter.stage("build model" + label)
-        system = case.build(options)
-    reporter.stage("augment" + label)
-    with _timed(timings, "augment"):
-        family = make_family(system, prune=case.prune)
-    return family.system or system, family
-
-
-def evaluate(
-    family: Family,
-    policies: Sequence[Policy],
-    evaluator: Evaluator,
-    reporter: Reporter | None = None,
-    stage: str = "evaluate",
-) -> Valued:
-    """All ``policies`` with their values, in the given order."""
-    reporter = reporter or NullReporter()
-    for policy in policies:
-        family.check(policy)
-    reporter.stage(stage, len(policies))
-    rows = np.array([p.values for p in policies], dtype=np.int64).reshape(-1, len(family.decisions))
-    values = evaluator.evaluate(rows, progress=reporter.advance)
-    return Valued(objectives=family.objectives, policies=policies, values=values)
+    from parley_core.optimality.branch_and_bound import ExactResult
 
 
 @frozen(kw_only=True)
@@ -183,7 +75,7 @@ def run(
     workers: int | None = None,
     reporter: Reporter | None = None,
     verify: bool = True,
-    bound: str = "pareto",
+    bound: BoundMethod | str = BoundMethod.PARETO,
     bound_time: float | None = None,
     verify_with: str | VerifyPath = VerifyPath.BATCH,
     warm: Sequence[Policy] = (),
@@ -207,151 +99,256 @@ def run(
     ``verify=False`` skips re-checking the front with Storm when another evaluator searched
     (campaigns may choose it for time); the result then says so (``verification.by``).
     """
-    reporter = reporter or NullReporter()
-    kind = EvaluatorKind.of(evaluator)
-    family = prepared.family
-    if not family.objectives:
-        raise OptionError("the model has no objectives to optimize; give a properties file")
-    scenarios = prepared.scenarios
-    if scenarios and bound == "refine":
-        raise OptionError(
-            "--bound refine does not take --scenarios yet (branch and bound works on one model); "
-            "use --bound pareto or ideal"
-        )
-    for policy in warm:
-        family.check(policy)
-    timings = dict(prepared.timings)
-    directions = [o.direction for o in family.objectives]
-    reporter.stage(f"{kind.value} evaluator")
-    engine: Any
-    with _timed(timings, "evaluator"):
-        if scenarios:
-            engine = robust.make_evaluator(scenarios, kind, workers, reporter)
-        else:
-            engine = make_evaluator(family, kind, workers)
+    steps = _Steps(
+        prepared,
+        settings,
+        kind=EvaluatorKind.of(evaluator),
+        workers=workers,
+        reporter=reporter or NullReporter(),
+        bound=BoundMethod.of(bound),
+        bound_time=bound_time,
+        warm=warm,
+    )
+    engine = steps.evaluator()
     try:
-        archive = CachingEvaluator(engine, len(family.decisions), len(family.objectives))
-        with _timed(timings, "baselines"):
-            baseline = evaluate(family, family.baseline_policies(), archive, reporter, stage="baselines")
-        # a polished search advances by generations, then by polishing rounds: no known total
-        reporter.stage("search", None if configuration(settings.algorithm).polish else settings.generations)
-        with _timed(timings, "search"):
-            starts = np.array([p.values for p in warm], dtype=np.int64).reshape(-1, len(family.decisions))
-            result = search(family, engine, settings, archive=archive, progress=reporter.advance, warm=starts)
-        if result.interrupted:
-            reporter.note(
-                f"search interrupted after {result.generations} generations; writing the front of what was evaluated"
-            )
-        refined = outer = None
-        searched_values = result.values
-        if bound == "refine" and not result.interrupted:
-            with _timed(timings, "bound"):
-                cheap = run_bounds.outer(family, engine, "pareto")
-                outer = cheap[0]
-                refined, searched_values = run_bounds.refine(family, engine, result, bound_time, reporter, cheap)
-            if refined.stopped_by == "interrupted":
-                reporter.note("branch and bound interrupted; writing the front and the bound so far")
+        searched = steps.search(engine)
     except BaseException:
         engine.close(abort=True)
         raise
     engine.close()
-
-    names = [o.name for o in family.objectives]
-    # the search's values as branch and bound saw them: one solver's values on both sides of
-    # the merge, so that two policies tied to rounding do not both look nondominated
-    found_policies, found_values = result.policies, searched_values
-    if refined is not None and len(refined.values):
-        found_policies = np.vstack([found_policies, refined.policies])
-        found_values = np.vstack([found_values, refined.values])
-    feasible = meets(found_values, names, settings.constraints)
-    if not feasible.any():
-        best = ", ".join(f"{o.name} {_best(found_values[:, i], o):.4g}" for i, o in enumerate(family.objectives))
-        raise SearchError(
-            f"no evaluated policy meets {' and '.join(map(str, settings.constraints))} (best values seen: {best}); "
-            "relax the constraints or search longer"
-        )
-    feasible &= metrics.front_candidates(found_values)
-    if not feasible.any():
-        raise SearchError("every evaluated policy has a NaN objective value; check the objectives' formulas")
-    mask = metrics.nondominated(found_values[feasible], directions)
-    candidates = found_policies[feasible][mask]
-    values = found_values[feasible][mask]
-    # the baselines too: every value a run reports is Storm's
-    base_rows = np.array([p.values for p in baseline.policies], dtype=np.int64).reshape(-1, len(family.decisions))
-    rows = np.vstack([base_rows, candidates])
-    searched = np.vstack([np.array(baseline.values).reshape(-1, len(names)), values])
-    each = None
-    with _timed(timings, "verify"):
-        if kind is EvaluatorKind.STORM:
-            verification, checked = by_search(), searched
-        elif not verify:
-            verification, checked = not_checked(), searched
-        else:
-            labels = [f"baseline {p.name}" for p in baseline.policies] + [None] * len(candidates)
-            if scenarios:
-                verification, checked, each = robust.check_scenarios(
-                    scenarios, engine, rows, workers, reporter, labels, len(base_rows), verify_with
-                )
-            else:
-                verification, checked = check_with_storm(
-                    family, rows, searched, workers, reporter, labels, len(base_rows), verify_with
-                )
-        if scenarios and each is None:
-            each = engine.scenario_values(rows)
-        baseline = Valued(objectives=family.objectives, policies=baseline.policies, values=checked[: len(base_rows)])
-        values = checked[len(base_rows) :]
-    # Storm's values decide the front: drop anything they show to be dominated or infeasible.
-    keep = (
-        metrics.nondominated(values, directions)
-        & meets(values, names, settings.constraints)
-        & metrics.front_candidates(values)
-    )
-    candidates, values = candidates[keep], values[keep]
-    order = np.lexsort(tuple(values[:, i] for i in reversed(range(values.shape[1]))))
-    baseline_each = front_each = None
-    if each is not None:
-        baseline_each, front_each = each[: len(base_rows)], each[len(base_rows) :][keep][order]
-    width = len(str(len(order)))
-    front = Front(
-        objectives=family.objectives,
-        policies=[Policy(name=f"p{i + 1:0{width}d}", values=candidates[j]) for i, j in enumerate(order)],
-        values=values[order],
-    )
-    found = None
-    if refined is not None and outer is not None:
-        from parley_core.optimality.bound import intersect, refined_bound
-
-        found = refined_bound(family, refined)
-        if not found.exact:
-            found = intersect(outer, found, found.method + ", within the Pareto outer approximation")
-    elif bound != "none":
-        with _timed(timings, "bound"):
-            reporter.stage("bound")
-            found = (
-                robust.bound(scenarios, engine, bound, functools.partial(run_bounds.outer, seconds=bound_time))
-                if scenarios
-                else run_bounds.outer(family, engine, bound, bound_time)[0]
-            )
-    reference = metrics.reference_point(family.objectives, np.array(front.values), np.array(baseline.values))
-    describe = getattr(engine, "describe", None)
+    candidates, values = steps.candidates(searched)
+    checked = steps.verify(engine, searched.baseline, candidates, values, verify, verify_with)
+    front, baseline_each, front_each = steps.front(checked)
+    found = steps.certified_bound(engine, searched)
+    objectives = prepared.family.objectives
+    reference = metrics.reference_point(objectives, np.array(front.values), np.array(checked.baseline.values))
     return RunResult(
         prepared=prepared,
         settings=settings,
-        evaluator=kind,
-        workers=getattr(engine, "workers", 1),
-        evaluator_info=describe() if describe else {},
-        baseline=baseline,
+        evaluator=steps.kind,
+        workers=engine.workers,
+        evaluator_info=engine.describe(),
+        baseline=checked.baseline,
         front=front,
-        search=result,
-        verification=verification,
+        search=searched.result,
+        verification=checked.verification,
         reference=tuple(float(r) for r in reference),
-        selected=metrics.knee(np.array(front.values), directions),
-        timings=timings,
+        selected=metrics.knee(np.array(front.values), [o.direction for o in objectives]),
+        timings=steps.timings,
         bound=found,
         baseline_scenarios=baseline_each,
         front_scenarios=front_each,
         warm_start=len(warm),
     )
+
+
+@frozen(kw_only=True)
+class _Searched:
+    """What the search (and branch and bound, with ``--bound refine``) found."""
+
+    baseline: Valued
+    """The baselines, the search evaluator's values."""
+    result: SearchResult
+    values: np.ndarray = field(eq=False)
+    """The search's values as branch and bound saw them (the search's own without it)."""
+    refined: ExactResult | None = None
+    outer: Bound | None = None
+    """The cheap bound branch and bound started from."""
+
+
+@frozen(kw_only=True)
+class _Checked:
+    """The baselines and the front's candidates with the values Storm gave them."""
+
+    baseline: Valued
+    candidates: np.ndarray = field(eq=False)
+    values: np.ndarray = field(eq=False)
+    verification: Verification
+    each: np.ndarray | None = field(default=None, eq=False)
+    """A robust run's values per scenario [baselines + candidates, scenarios, objectives]."""
+
+
+class _Steps:
+    """The steps of one run, in order: :meth:`evaluator`, :meth:`search`, :meth:`candidates`,
+    :meth:`verify`, :meth:`front`, :meth:`certified_bound`. Each is timed into ``timings``."""
+
+    def __init__(
+        self,
+        prepared: Prepared,
+        settings: SearchSettings,
+        *,
+        kind: EvaluatorKind,
+        workers: int | None,
+        reporter: Reporter,
+        bound: BoundMethod,
+        bound_time: float | None,
+        warm: Sequence[Policy],
+    ) -> None:
+        self.family = family = prepared.family
+        if not family.objectives:
+            raise OptionError("the model has no objectives to optimize; give a properties file")
+        self.scenarios = prepared.scenarios
+        if self.scenarios and bound is BoundMethod.REFINE:
+            raise OptionError(
+                "--bound refine does not take --scenarios yet (branch and bound works on one model); "
+                "use --bound pareto or ideal"
+            )
+        for policy in warm:
+            family.check(policy)
+        self.settings, self.kind, self.workers, self.reporter = settings, kind, workers, reporter
+        self.bound, self.bound_time, self.warm = bound, bound_time, warm
+        self.timings = dict(prepared.timings)
+        self.names = [o.name for o in family.objectives]
+        self.directions = [o.direction for o in family.objectives]
+
+    def evaluator(self) -> Evaluator:
+        self.reporter.stage(f"{self.kind.value} evaluator")
+        with timed(self.timings, "evaluator"):
+            if self.scenarios:
+                return robust.make_evaluator(self.scenarios, self.kind, self.workers, self.reporter)
+            return make_evaluator(self.family, self.kind, self.workers)
+
+    def search(self, engine: Evaluator) -> _Searched:
+        """The baselines, then the search from them (and the warm start), then branch and
+        bound if asked; every policy evaluated once, through one archive."""
+        family, reporter, settings = self.family, self.reporter, self.settings
+        archive = CachingEvaluator(engine, len(family.decisions), len(family.objectives))
+        with timed(self.timings, "baselines"):
+            baseline = evaluate_policies(family, family.baseline_policies(), archive, reporter, stage="baselines")
+        # a polished search advances by generations, then by polishing rounds: no known total
+        reporter.stage("search", None if configuration(settings.algorithm).polish else settings.generations)
+        with timed(self.timings, "search"):
+            starts = np.array([p.values for p in self.warm], dtype=np.int64).reshape(-1, len(family.decisions))
+            result = search(family, engine, settings, archive=archive, progress=reporter.advance, warm=starts)
+        if result.interrupted:
+            reporter.note(
+                f"search interrupted after {result.generations} generations; writing the front of what was evaluated"
+            )
+        if self.bound is not BoundMethod.REFINE or result.interrupted:
+            return _Searched(baseline=baseline, result=result, values=result.values)
+        with timed(self.timings, "bound"):
+            cheap = run_bounds.outer(family, engine, BoundMethod.PARETO)
+            refined, values = run_bounds.refine(family, engine, result, self.bound_time, reporter, cheap)
+        if refined.stopped_by is Stopped.INTERRUPTED:
+            reporter.note("branch and bound interrupted; writing the front and the bound so far")
+        return _Searched(baseline=baseline, result=result, values=values, refined=refined, outer=cheap[0])
+
+    def candidates(self, searched: _Searched) -> tuple[np.ndarray, np.ndarray]:
+        """The evaluated policies that meet the constraints and no other evaluated one
+        dominates, with their values."""
+        # the search's values as branch and bound saw them: one solver's values on both sides of
+        # the merge, so that two policies tied to rounding do not both look nondominated
+        policies, values = searched.result.policies, searched.values
+        if searched.refined is not None and len(searched.refined.values):
+            policies = np.vstack([policies, searched.refined.policies])
+            values = np.vstack([values, searched.refined.values])
+        constraints = self.settings.constraints
+        feasible = meets(values, self.names, constraints)
+        if not feasible.any():
+            objectives = self.family.objectives
+            best = ", ".join(f"{o.name} {_best(values[:, i], o):.4g}" for i, o in enumerate(objectives))
+            raise SearchError(
+                f"no evaluated policy meets {' and '.join(map(str, constraints))} (best values seen: {best}); "
+                "relax the constraints or search longer"
+            )
+        feasible &= metrics.front_candidates(values)
+        if not feasible.any():
+            raise SearchError("every evaluated policy has a NaN objective value; check the objectives' formulas")
+        mask = metrics.nondominated(values[feasible], self.directions)
+        return policies[feasible][mask], values[feasible][mask]
+
+    def verify(
+        self,
+        engine: Evaluator,
+        baseline: Valued,
+        candidates: np.ndarray,
+        values: np.ndarray,
+        verify: bool,
+        verify_with: str | VerifyPath,
+    ) -> _Checked:
+        """Storm's values of the baselines and the candidates (every value a run reports is
+        Storm's), in every scenario of a robust run."""
+        family = self.family
+        base_rows = np.array([p.values for p in baseline.policies], dtype=np.int64).reshape(-1, len(family.decisions))
+        rows = np.vstack([base_rows, candidates])
+        searched = np.vstack([np.array(baseline.values).reshape(-1, len(self.names)), values])
+        each = None
+        worst_case = engine if isinstance(engine, robust.WorstCaseEvaluator) else None
+        with timed(self.timings, "verify"):
+            if self.kind is EvaluatorKind.STORM:
+                verification, checked = by_search(), searched
+            elif not verify:
+                verification, checked = not_checked(), searched
+            else:
+                labels = [f"baseline {p.name}" for p in baseline.policies] + [None] * len(candidates)
+                if worst_case is not None:
+                    verification, checked, each = robust.check_scenarios(
+                        self.scenarios,
+                        worst_case,
+                        rows,
+                        self.workers,
+                        self.reporter,
+                        labels,
+                        len(base_rows),
+                        verify_with,
+                    )
+                else:
+                    verification, checked = check_with_storm(
+                        family, rows, searched, self.workers, self.reporter, labels, len(base_rows), verify_with
+                    )
+            if worst_case is not None and each is None:
+                each = worst_case.scenario_values(rows)
+        return _Checked(
+            baseline=Valued(objectives=family.objectives, policies=baseline.policies, values=checked[: len(base_rows)]),
+            candidates=candidates,
+            values=checked[len(base_rows) :],
+            verification=verification,
+            each=each,
+        )
+
+    def front(self, checked: _Checked) -> tuple[Front, np.ndarray | None, np.ndarray | None]:
+        """The front Storm's values decide (anything they show to be dominated or infeasible
+        dropped), in lexicographic order of the values, and a robust run's values per scenario
+        of the baselines and of the front."""
+        values = checked.values
+        keep = (
+            metrics.nondominated(values, self.directions)
+            & meets(values, self.names, self.settings.constraints)
+            & metrics.front_candidates(values)
+        )
+        candidates, values = checked.candidates[keep], values[keep]
+        order = np.lexsort(tuple(values[:, i] for i in reversed(range(values.shape[1]))))
+        baseline_each = front_each = None
+        if checked.each is not None:
+            bases = len(checked.baseline.policies)
+            baseline_each, front_each = checked.each[:bases], checked.each[bases:][keep][order]
+        width = len(str(len(order)))
+        front = Front(
+            objectives=self.family.objectives,
+            policies=[Policy(name=f"p{i + 1:0{width}d}", values=candidates[j]) for i, j in enumerate(order)],
+            values=values[order],
+        )
+        return front, baseline_each, front_each
+
+    def certified_bound(self, engine: Evaluator, searched: _Searched) -> Bound | None:
+        """Branch and bound's bound (within the cheap one it started from), else the cheap
+        bound asked for (in a robust run, every scenario's intersected)."""
+        if searched.refined is not None and searched.outer is not None:
+            from parley_core.optimality.bound import intersect, refined_bound
+
+            found = refined_bound(self.family, searched.refined)
+            if found.exact:
+                return found
+            return intersect(searched.outer, found, found.method + ", within the Pareto outer approximation")
+        if self.bound is BoundMethod.NONE or self.bound is BoundMethod.REFINE:  # refine: the search was interrupted
+            return None
+        with timed(self.timings, "bound"):
+            self.reporter.stage("bound")
+            if self.scenarios:
+                assert isinstance(engine, robust.WorstCaseEvaluator)
+                outer = functools.partial(run_bounds.outer, seconds=self.bound_time)
+                return robust.bound(self.scenarios, engine, self.bound, outer)
+            return run_bounds.outer(self.family, engine, self.bound, self.bound_time)[0]
 
 
 def _best(column: np.ndarray, objective) -> float:

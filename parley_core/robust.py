@@ -17,27 +17,13 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from attrs import field, frozen
 
 from parley_core.errors import OptionError
-from parley_core.evaluate import EvaluatorKind
-from parley_core.family.scenarios import Scenario, ScenarioSet
-from parley_core.model import Direction, Family, Objective, SystemModel
+from parley_core.evaluate import Consulting, EvaluatorKind
+from parley_core.family.scenarios import ScenarioModel
+from parley_core.model import Direction, Family, Objective
+from parley_core.optimality.records import BoundMethod
 from parley_core.progress import NullReporter, Progress, Reporter
-
-
-@frozen(kw_only=True)
-class ScenarioModel:
-    """One scenario of a robust run: its options, its system model and its family."""
-
-    scenario: Scenario
-    options: Any
-    system: SystemModel
-    family: Family = field(eq=False, repr=False)
-
-    @property
-    def label(self) -> str:
-        return self.scenario.label
 
 
 def worst(values: np.ndarray, objectives: Sequence[Objective]) -> np.ndarray:
@@ -49,15 +35,6 @@ def worst(values: np.ndarray, objectives: Sequence[Objective]) -> np.ndarray:
         column = values[:, :, j]
         out[:, j] = column.min(axis=1) if objective.direction is Direction.MAX else column.max(axis=1)
     return out
-
-
-def scenario_options(case, base: dict[str, str], scenarios: ScenarioSet) -> list[tuple[Scenario, Any]]:
-    """Each scenario's options: the run's ``--set`` values, then the scenario's over them. A
-    scenario may not set an option ``--set`` gives too (which would win is not obvious)."""
-    clash = sorted(set(base) & set(scenarios.keys))
-    if clash:
-        raise OptionError(f"option {clash[0]!r} is given by --set and by --scenarios; give it in --scenarios only")
-    return [(scenario, case.options_from({**base, **scenario.values})) for scenario in scenarios]
 
 
 def _decision_space(family: Family) -> tuple:
@@ -125,7 +102,7 @@ class WorstCaseEvaluator:
 
     @property
     def workers(self) -> int:
-        return getattr(self.engines[0], "workers", 1)
+        return self.engines[0].workers
 
     def _each(self, policies: np.ndarray, progress: Progress | None) -> tuple[np.ndarray, np.ndarray]:
         """Values [n, scenarios, objectives] and consulted decisions [n, decisions] (in any scenario)."""
@@ -141,9 +118,8 @@ class WorstCaseEvaluator:
 
         values, consulted = [], np.zeros(policies.shape, dtype=bool)
         for engine in self.engines:
-            consulting = getattr(engine, "evaluate_consulted", None)
-            if consulting is not None:
-                value, mask = consulting(policies, progress=advance)
+            if isinstance(engine, Consulting):
+                value, mask = engine.evaluate_consulted(policies, progress=advance)
                 consulted |= mask
             else:
                 value = engine.evaluate(policies, progress=advance)
@@ -175,7 +151,7 @@ class WorstCaseEvaluator:
         )
 
     def describe(self) -> dict[str, object]:
-        return {"scenarios": [getattr(e, "describe", dict)() for e in self.engines]}
+        return {"scenarios": [e.describe() for e in self.engines]}
 
     def close(self, abort: bool = False) -> None:
         for engine in self.engines:
@@ -257,7 +233,7 @@ def check_scenarios(
     return verification, worst(checked, engine.objectives), checked
 
 
-def bound(models: Sequence[ScenarioModel], engine: WorstCaseEvaluator, method: str, outer):
+def bound(models: Sequence[ScenarioModel], engine: WorstCaseEvaluator, method: BoundMethod, outer):
     """Every scenario's bound (``outer(family, engine, method)``), intersected."""
     from parley_core.optimality.bound import intersect
 

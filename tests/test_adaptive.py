@@ -11,8 +11,8 @@ from typer.testing import CliRunner
 
 from parley_core.cli import app
 from parley_core.errors import OptionError, PolicyError
+from parley_core.family.prepare import prepare
 from parley_core.model import Policy
-from parley_core.pipeline import prepare
 from parley_core.plugin.manager import load_registry
 from parley_core.rundir.policies import table
 from parley_core.simulation.drift import Drift, simulate_drift

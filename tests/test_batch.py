@@ -283,7 +283,8 @@ def test_property_batch_equals_reference_on_random_maps_and_policies(size, seed,
 def test_front_policies_agree_with_the_reference(case, assignments):
     # a search's front is not a random sample: its policies localise or scan often, and
     # reach other and more states
-    from parley_core.pipeline import prepare, run
+    from parley_core.family.prepare import prepare
+    from parley_core.pipeline import run
     from parley_core.plugin.manager import load_registry
     from parley_core.search import SearchSettings
 

@@ -17,11 +17,11 @@ from test_foreign import MODELS, _paths
 from typer.testing import CliRunner
 
 from parley_core.cli import app
+from parley_core.family.prepare import make_family
 from parley_core.family.usermodel import system_from_file
 from parley_core.model import DecisionKind, Direction, Objective, Service
 from parley_core.optimality.belief import belief_ideal, belief_query
 from parley_core.optimality.bound import ideal_point
-from parley_core.pipeline import make_family
 from parley_core.quotient.coloring import build_quotient
 from parley_core.testing import family, values
 
@@ -106,10 +106,11 @@ def test_storm_stopped_leaves_the_mdps_value_and_says_why():
     quotient = build_quotient(case)
     mdp = ideal_point(case, quotient)
     full = belief_ideal(case, quotient, ideal=mdp)
-    assert any("pomdp" in d for d in full.details["belief"].values())
+    assert full.belief and any(d.pomdp is not None for d in full.belief.values())
     stopped = belief_ideal(case, quotient, ideal=mdp, seconds=0.001)  # not even stormpy is imported by then
     np.testing.assert_array_equal(stopped.points, mdp.points)
-    reasons = [d["error"] for d in stopped.details["belief"].values()]
+    assert stopped.belief is not None
+    reasons = [d.error for d in stopped.belief.values() if d.error is not None]
     assert reasons and all("did not finish in 0.001 s" in r for r in reasons)
 
 
@@ -158,5 +159,6 @@ def test_the_belief_bound_holds_on_models_we_did_not_write(foreign, index, tmp_p
     inside = bound.dominates(storm)
     assert inside.all(), f"{spec.folder}: {storm[~inside][:3]} beyond the belief bound {bound.points}"
     if spec.folder == "paynt-maze":  # the observation hides the position: fewer expected steps than any observer takes
-        steps = bound.details["belief"]["steps"]
-        assert steps["pomdp"] > steps["mdp"] + 0.1
+        assert bound.belief is not None
+        steps = bound.belief["steps"]
+        assert steps.pomdp is not None and steps.pomdp > steps.mdp + 0.1

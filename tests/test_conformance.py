@@ -23,7 +23,7 @@ def test_a_failing_policy_plot_costs_only_the_plot(toy, tmp_path):
     from attrs import frozen
 
     from parley_core import CaseStudy
-    from parley_core.pipeline import Prepared
+    from parley_core.family.prepare import Prepared
     from parley_core.rundir.write import PLOT_ERROR
     from parley_core.testing import family
 
@@ -51,7 +51,7 @@ def test_the_policy_map_check_catches_a_wrong_map():
     from attrs import frozen
 
     from parley_core import CaseStudy, PolicyMap
-    from parley_core.pipeline import Prepared
+    from parley_core.family.prepare import Prepared
     from parley_core.testing import family
     from parley_core.testing.conformance import ConformanceError, check_policy_map
 

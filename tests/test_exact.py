@@ -19,10 +19,11 @@ from parley_core import metrics
 from parley_core.boxes import Box, box_rows, local_front
 from parley_core.cli import app
 from parley_core.evaluate.quotient import QuotientEvaluator
+from parley_core.family.prepare import make_family
 from parley_core.optimality.archive import Archive, region_points, robust_front
 from parley_core.optimality.bound import refined_bound
 from parley_core.optimality.branch_and_bound import branch_and_bound
-from parley_core.pipeline import make_family
+from parley_core.optimality.records import Stopped
 from parley_core.quotient.coloring import build_quotient
 from parley_core.quotient.solver import QuotientSolver
 from parley_core.testing import case_study, family
@@ -106,7 +107,7 @@ def test_branch_and_bound_equals_enumeration(name, fam):
     # ``whole`` (a node's widest decision kept whole) splits other decisions first
     for leaf, adaptive, whole in ((4, False, False), (32, False, False), (4, True, False), (4, False, True)):
         result = branch_and_bound(fam, quotient, evaluate, leaf=leaf, adaptive=adaptive, whole=whole)
-        assert result.exact and result.stopped_by == "complete"
+        assert result.exact and result.stopped_by is Stopped.COMPLETE
         _assert_same_front(result.values, values, fam)
         # every policy returned has the value it claims
         np.testing.assert_allclose(evaluate(result.policies), result.values, rtol=1e-12, atol=1e-15)
@@ -227,7 +228,7 @@ def test_ctrl_c_leaves_the_front_so_far_and_a_sound_bound(after):
             raise KeyboardInterrupt
 
     result = branch_and_bound(fam, quotient, evaluate, leaf=4, adaptive=False, progress=progress)
-    assert result.stopped_by == "interrupted" and not result.exact and result.open > 0
+    assert result.stopped_by is Stopped.INTERRUPTED and not result.exact and result.open > 0
     if len(result.policies):
         np.testing.assert_allclose(evaluate(result.policies), result.values, rtol=1e-12, atol=1e-15)
     assert refined_bound(fam, result).dominates(values).all()
@@ -267,7 +268,7 @@ def test_ctrl_c_in_the_workers_puts_their_boxes_back_among_the_open(lost):
     _, total = search(failing=0)
     assert total >= 3
     result, _ = search(failing={"first": 1, "second": 2, "last": total}[lost])
-    assert result.stopped_by == "interrupted" and not result.exact and result.open > 0
+    assert result.stopped_by is Stopped.INTERRUPTED and not result.exact and result.open > 0
     assert refined_bound(fam, result).dominates(values).all()
 
 
@@ -324,7 +325,8 @@ def test_parley_exact_writes_an_exact_run(tmp_path):
 
 
 def test_a_refined_run_bound_is_sound_and_no_looser_than_the_outer_one():
-    from parley_core.pipeline import Prepared, run
+    from parley_core.family.prepare import Prepared
+    from parley_core.pipeline import run
     from parley_core.search import SearchSettings
 
     fam = narrow("web_ids", ["rounds=6"], 4)
@@ -370,5 +372,5 @@ def test_a_time_limit_is_kept_when_policies_are_slow(monkeypatch):
 
     began = time.perf_counter()
     result = branch_and_bound(fam, quotient, slow, time_limit=0.5, leaf=64, adaptive=False)
-    assert not result.exact and result.stopped_by == "time"
+    assert not result.exact and result.stopped_by is Stopped.TIME
     assert time.perf_counter() - began < 4.0  # a batch of 4,096 would take 8 s

@@ -19,8 +19,8 @@ import pytest
 from typer.testing import CliRunner
 
 from parley_core.cli import app
+from parley_core.family.prepare import make_family
 from parley_core.family.usermodel import system_from_file
-from parley_core.pipeline import make_family
 from parley_core.testing import storm_values, values
 from parley_core.verify import TOLERANCE, differences
 

@@ -26,9 +26,13 @@ class NoQuotient:
     def __init__(self, inner) -> None:
         self.inner = inner
         self.name = inner.name
+        self.workers = 1
 
     def evaluate(self, policies, progress=None):
         return self.inner.evaluate(policies, progress=progress)
+
+    def describe(self) -> dict[str, object]:
+        return {}
 
     def close(self, abort: bool = False) -> None:
         pass

@@ -62,8 +62,8 @@ def test_run_report_in_a_browser(case, browser, tmp_path):
     table = {c: page.data("policy-table", c) for c in [s.constant for s in run.files.services]}
     policy = run.policy(name)
     row_of = {}
-    for (_decision, constant, valuation), value in zip(run.files.decisions, policy.values):
-        row_of[(constant, valuation)] = value
+    for decision, value in zip(run.files.decisions, policy.values):
+        row_of[(decision.service.constant, decision.valuation)] = value
     observed = list(run.files.observation)
     valuations = list(zip(*(page.data("policy-table", v) for v in observed))) if observed else [()]
     for (constant, valuation), value in row_of.items():

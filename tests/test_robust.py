@@ -13,9 +13,10 @@ from typer.testing import CliRunner
 from parley_core.cli import app
 from parley_core.errors import OptionError
 from parley_core.evaluate.storm import StormEvaluator
+from parley_core.family.prepare import prepare, prepare_scenarios
 from parley_core.family.scenarios import ScenarioSet
 from parley_core.family.usermodel import override_constants
-from parley_core.pipeline import prepare, prepare_scenarios, run
+from parley_core.pipeline import run
 from parley_core.plugin.manager import load_registry
 from parley_core.robust import worst
 from parley_core.search import SearchSettings

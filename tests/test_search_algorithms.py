@@ -35,9 +35,13 @@ class Rounded:
     def __init__(self, inner) -> None:
         self.inner = inner
         self.name = inner.name
+        self.workers = 1
 
     def evaluate(self, policies, progress=None):
         return np.round(self.inner.evaluate(policies, progress=progress), 7)
+
+    def describe(self) -> dict[str, object]:
+        return {}
 
     def close(self, abort: bool = False) -> None:
         self.inner.close(abort)

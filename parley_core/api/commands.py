@@ -20,6 +20,7 @@ from parley_core.api.runs import Run, load
 from parley_core.constraints import Constraint
 from parley_core.errors import OptionError
 from parley_core.evaluate import EvaluatorKind
+from parley_core.optimality.records import BoundMethod
 from parley_core.progress import Reporter
 from parley_core.views.richprogress import reporting
 
@@ -71,8 +72,8 @@ def prepare_case(
     case_name: str, assignments: Sequence[str] | None, reporter=None, scenarios: Sequence[str] | None = None
 ):
     """The case study's prepared run; with ``scenarios`` (``--scenarios`` values), a robust one."""
+    from parley_core.family.prepare import prepare, prepare_scenarios
     from parley_core.family.scenarios import ScenarioSet
-    from parley_core.pipeline import prepare, prepare_scenarios
     from parley_core.plugin.manager import load_registry
     from parley_core.plugin.options import parse_assignments
 
@@ -240,9 +241,9 @@ def synthesis_preparer(
     scenarios: Sequence[str] | None,
 ) -> Callable[[Reporter], Any]:
     """What prepares a user model's run (a robust one with ``scenarios``)."""
+    from parley_core.family.prepare import prepare, prepare_scenarios
     from parley_core.family.scenarios import ScenarioSet
     from parley_core.family.usermodel import FileOptions, case_study_for, system_from_file
-    from parley_core.pipeline import prepare, prepare_scenarios
 
     specs = decision_specs(decisions)
 
@@ -284,7 +285,7 @@ def execute(
     force: bool = False,
     evaluator: str = EvaluatorKind.QUOTIENT.value,
     workers: int | None = None,
-    bound: str = "pareto",
+    bound: BoundMethod | str = BoundMethod.PARETO,
     bound_time: float | None = None,
     verify_with: str = "batch",
     warm_start: Path | None = None,
@@ -296,8 +297,7 @@ def execute(
 
     kind = EvaluatorKind.of(evaluator)
     path = VerifyPath.of(verify_with)
-    if bound not in ("pareto", "ideal", "belief", "refine", "none"):
-        raise OptionError(f"unknown --bound {bound!r}; valid: pareto, ideal, belief, refine, none")
+    method = BoundMethod.of(bound)
     check_output(out, force)
     prepared = prepare_with(reporter)
     warm = []
@@ -313,7 +313,7 @@ def execute(
         evaluator=kind,
         workers=workers,
         reporter=reporter,
-        bound=bound,
+        bound=method,
         bound_time=bound_time,
         verify_with=path,
         warm=warm,

@@ -39,8 +39,7 @@ def evaluate(
     """The objective values of ``policies`` (a policies CSV, such as a run's policies.csv, or
     :class:`~parley_core.model.Policy` objects of the case study's family) or of the one
     policy that uses ``constant`` everywhere."""
-    from parley_core.evaluate import make_evaluator
-    from parley_core.pipeline import evaluate as evaluate_policies
+    from parley_core.evaluate import evaluate_policies, make_evaluator
     from parley_core.rundir.policies import policies_or_constant
 
     kind = EvaluatorKind.of(evaluator)
@@ -75,8 +74,8 @@ def baseline(
     **more_options: Any,
 ) -> Valued:
     """The case study's baseline policies (fixed frequency or threshold), checked by Storm."""
+    from parley_core.evaluate import evaluate_policies
     from parley_core.evaluate.storm import StormEvaluator
-    from parley_core.pipeline import evaluate as evaluate_policies
 
     assignments = assignments_of({**(options or {}), **more_options})
     with reporting(progress) as reporter:
@@ -98,8 +97,8 @@ def augmented_family(
     model: str | Path, decisions: Mapping[str, tuple[int, int] | str] | Sequence[str], observe: Sequence[str] = ()
 ) -> Family:
     """A PRISM DTMC's family, kept to the observation valuations that consult a service."""
+    from parley_core.family.prepare import make_family
     from parley_core.family.usermodel import system_from_file
-    from parley_core.pipeline import make_family
 
     return make_family(system_from_file(Path(model), decision_specs(decisions), list(observe)), prune=True)
 

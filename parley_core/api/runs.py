@@ -9,7 +9,6 @@ result rides along only as :attr:`Run.result` (not compared).
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from types import MappingProxyType
@@ -20,7 +19,9 @@ from attrs import field, frozen
 
 from parley_core.constraints import Constraint
 from parley_core.model import Front, Objective, Policy, Valued
-from parley_core.rundir import read as rundir
+from parley_core.rundir import read
+from parley_core.rundir.read import Optimality
+from parley_core.rundir.summary import RunSummary
 from parley_core.urc.controller import URC
 from parley_core.verify import Verification
 
@@ -62,42 +63,26 @@ class Summary:
     document: Mapping[str, Any] = field(converter=_mapping, eq=False, repr=False)
 
     @classmethod
-    def from_json(cls, data: Mapping[str, Any]) -> Summary:
-        search = data["search"]
+    def of(cls, record: RunSummary, document: Mapping[str, Any]) -> Summary:
+        """The headline of a run's :class:`~parley_core.rundir.summary.RunSummary`."""
         return cls(
-            case_study=data["case_study"],
-            options=data["options"],
-            seed=int(data["seed"]),
-            algorithm=search["algorithm"],
-            evaluations=int(search["evaluations"]),
-            generations=int(search["generations_done"]),
-            stopped_by=search["stopped_by"],
-            front_hypervolume=float(data["front"]["hypervolume"]),
-            baseline_hypervolume=float(data["baseline"]["hypervolume"]),
-            hypervolume_gain_percent=data["hypervolume_gain_percent"],
-            reference=data["hypervolume_reference"],
-            selected=data["selected"]["policy"],
-            verified_by=data["verification"]["by"],
-            verification=Verification.from_json(data["verification"]),
-            timings=data["timings_seconds"],
-            document=data,
+            case_study=record.case_study,
+            options=record.options,
+            seed=record.seed,
+            algorithm=record.search.algorithm,
+            evaluations=record.search.evaluations,
+            generations=record.search.generations_done,
+            stopped_by=record.search.stopped_by.value,
+            front_hypervolume=record.front.hypervolume,
+            baseline_hypervolume=record.baseline.hypervolume,
+            hypervolume_gain_percent=record.hypervolume_gain_percent,
+            reference=record.hypervolume_reference,
+            selected=record.selected,
+            verified_by=record.verification.by.value,
+            verification=record.verification,
+            timings=record.timings_seconds,
+            document=document,
         )
-
-
-@frozen(kw_only=True)
-class Optimality:
-    """How close the front is to a certified outer bound of the family (``bound.csv``): no
-    policy of the family is better than every point of :attr:`points`."""
-
-    method: str
-    exact: bool
-    """True when the front is proven to be the family's whole Pareto front."""
-    bound_hypervolume: float
-    front_hypervolume: float
-    gap: float | None
-    """(bound - front) / bound, of the hypervolumes (None: no finite bound)."""
-    points: tuple[tuple[float, ...], ...] = field(converter=lambda rows: tuple(tuple(map(float, r)) for r in rows))
-    seconds: float = field(eq=False)
 
 
 @frozen(kw_only=True)
@@ -133,7 +118,7 @@ class Page:
             return self.path.read_text(encoding="utf-8")
         from parley_core.rundir.page import render
 
-        return render(self.run)
+        return render(self.run.files)
 
     def _repr_html_(self) -> str:
         from parley_core.views import inline
@@ -154,7 +139,7 @@ class Run:
     """The case study's baseline policies, Storm's values."""
     summary: Summary
     optimality: Optimality | None
-    files: rundir.RunDirectory = field(eq=False, repr=False)
+    files: read.RunDirectory = field(eq=False, repr=False)
     result: RunResult | None = field(default=None, eq=False, repr=False)
     """The pipeline's in-memory result when the run was made in this process."""
 
@@ -185,11 +170,10 @@ class Run:
         """``parley simulate``: a front policy (its name, a :class:`Selection`, or the knee)
         in Storm's simulator; per objective an estimate with its 99 % interval next to the
         model-checked value (or a sentence saying why it cannot be simulated)."""
-        from parley_core.family.usermodel import family_of_run
         from parley_core.simulation.storm import simulate
 
         name = self.summary.selected if policy is None else policy.name if isinstance(policy, Selection) else policy
-        return simulate(family_of_run(self.files), self.policy(name).values, episodes, seed, max_steps)
+        return simulate(self.files.family(), self.policy(name).values, episodes, seed, max_steps)
 
     def validate(
         self,
@@ -246,49 +230,15 @@ class Run:
 def load(directory: str | Path, *, result: RunResult | None = None) -> Run:
     """The :class:`Run` of a run directory written by parley."""
     path = Path(directory)
-    files = rundir.load(path)
-    summary = Summary.from_json(files.summary)
-    front = Front(objectives=files.objectives, policies=files.front.policies, values=files.front.values)
+    files = read.load(path)
     return Run(
         directory=path,
-        case_study=summary.case_study,
+        case_study=files.case_study,
         objectives=files.objectives,
-        front=front,
-        baseline=_baseline(files),
-        summary=summary,
-        optimality=_optimality(path, files),
+        front=files.front,
+        baseline=files.baseline,
+        summary=Summary.of(files.summary, files.document),
+        optimality=files.optimality,
         files=files,
         result=result,
-    )
-
-
-def _baseline(files: rundir.RunDirectory) -> Valued:
-    """baseline.csv: each baseline sets each service's constant to one value everywhere."""
-    names = [o.name for o in files.objectives]
-    policies: list[Policy] = []
-    values: list[list[float]] = []
-    if not (files.path / "baseline.csv").is_file():
-        return Valued(objectives=files.objectives, policies=policies, values=values)
-    with open(files.path / "baseline.csv") as handle:
-        for row in csv.DictReader(handle):
-            policies.append(Policy(name=row["policy"], values=[int(row[c]) for _, c, _ in files.decisions]))
-            values.append([float(row[n]) for n in names])
-    return Valued(objectives=files.objectives, policies=policies, values=values)
-
-
-def _optimality(path: Path, files: rundir.RunDirectory) -> Optimality | None:
-    data = files.summary.get("optimality")
-    if not data:
-        return None
-    names = [o.name for o in files.objectives]
-    with open(path / "bound.csv") as handle:
-        points = [[float(row[n]) for n in names] for row in csv.DictReader(handle)]
-    return Optimality(
-        method=data["bound_method"],
-        exact=bool(data["exact"]),
-        bound_hypervolume=float(data["bound_hypervolume"]),
-        front_hypervolume=float(data["front_hypervolume"]),
-        gap=data["gap"],
-        points=points,
-        seconds=float(data.get("seconds", 0.0)),
     )

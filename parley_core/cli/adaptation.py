@@ -30,8 +30,7 @@ def simulate_drift_command(
 ) -> None:
     from parley_core.cli.common import registry
     from parley_core.cli.console import RichReporter, stderr
-    from parley_core.family.usermodel import family_of_run
-    from parley_core.rundir import read as rundir
+    from parley_core.rundir import read
     from parley_core.simulation.drift import Drift, simulate_drift
     from parley_core.simulation.drift_report import plot, to_json
     from parley_core.urc.adaptive import load_controller
@@ -39,14 +38,14 @@ def simulate_drift_command(
     drift = Drift.parse(spec)
     if not target.is_dir():
         raise OptionError(f"--drift simulates the controllers on a run directory's model; {target} is not one")
-    run = rundir.load(target)
-    family = family_of_run(run)
+    run = read.load(target)
+    family = run.family()
     controllers = []
     for path in policies:
         controllers.append((path.stem, load_controller(path)))
     if len({name for name, _ in controllers}) != len(controllers):
         raise OptionError("two --policy files have the same name; give each controller its own file name")
-    case = registry().case_studies.get(str(run.summary.get("case_study", "")))
+    case = registry().case_studies.get(run.case_study)
     events = case.events.get(drift.parameter) if case is not None else None
     missions = missions or max(2, 2 * drift.end)
     with RichReporter(stderr()) as reporter:
@@ -133,7 +132,7 @@ def adapt_command(
 ) -> None:
     """An adaptive URC: from each run (one value of a drifting parameter each) the policy `parley select` would
     pick, switched at runtime to the most likely value's; the first run's value is in force at the start."""
-    from parley_core.rundir import read as rundir
+    from parley_core.rundir import read
     from parley_core.rundir.select import controller, select
     from parley_core.urc.adaptive import AdaptiveController, Estimator
 
@@ -141,17 +140,17 @@ def adapt_command(
         raise OptionError("give two or more run directories, one per value of the parameter")
     if forgetting <= 0:
         raise OptionError("--forgetting must be above 0 (1: never forget)")
-    loaded = [rundir.load(path) for path in runs]
+    loaded = [read.load(path) for path in runs]
     first = loaded[0]
     values = []
     for path, run in zip(runs, loaded):
-        options = run.summary.get("options", {})
+        options = run.summary.options
         if parameter not in options:
             raise OptionError(f"run {path} has no option {parameter!r}; its options: {', '.join(options) or 'none'}")
-        if run.summary.get("case_study") != first.summary.get("case_study") or run.decisions != first.decisions:
+        if run.case_study != first.case_study or run.decisions != first.decisions:
             raise OptionError(f"run {path} is of another case study or decides other things than {runs[0]}")
         others = {k: v for k, v in options.items() if k != parameter}
-        base = {k: v for k, v in first.summary.get("options", {}).items() if k != parameter}
+        base = {k: v for k, v in first.summary.options.items() if k != parameter}
         if others != base:
             differ = sorted(k for k in set(others) | set(base) if others.get(k) != base.get(k))
             raise OptionError(
@@ -167,10 +166,9 @@ def adapt_command(
     if calibration:
         from parley_core.cli.common import registry
         from parley_core.cli.console import RichReporter, stderr
-        from parley_core.family.usermodel import family_of_run
         from parley_core.simulation.drift import calibrate
 
-        case = registry().case_studies.get(str(first.summary.get("case_study", "")))
+        case = registry().case_studies.get(first.case_study)
         events = case.events.get(parameter) if case is not None else None
         if events is None:
             raise OptionError(
@@ -179,7 +177,7 @@ def adapt_command(
             )
         with RichReporter(stderr()) as reporter:
             found = calibrate(
-                [family_of_run(loaded[i]) for i in order],
+                [loaded[i].family() for i in order],
                 parameter,
                 [values[i] for i in order],
                 [urcs[i] for i in order],

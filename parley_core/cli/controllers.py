@@ -35,12 +35,12 @@ def select_command(
 ) -> None:
     """Pick one policy from a front (best on an objective under constraints, or the knee) and write it as a
     controller."""
-    from parley_core.rundir import read as rundir
+    from parley_core.rundir import read
     from parley_core.rundir.select import controller, select
 
     if prefer is not None and knee:
         raise OptionError("give --prefer NAME or --knee, not both")
-    run = rundir.load(run_dir)
+    run = read.load(run_dir)
     chosen = select(run, constraints(constraint), prefer)
     urc = controller(run, chosen)
     target = out or run_dir / "controller.json"
@@ -149,15 +149,14 @@ def simulate_command(
 def _simulated_family(target: Path, policy: Path, props: Path | None):
     """The family a simulation runs on: a run directory's, or a user's model augmented
     with the controller file's services and observation."""
-    from parley_core.family.usermodel import family_of_run
-    from parley_core.rundir import read as rundir
+    from parley_core.rundir import read
     from parley_core.simulation.storm import family_for_controller
     from parley_core.urc.controller import URC
 
     if target.is_dir():
         if props is not None:
             raise OptionError("--props is for a PRISM model; a run directory has its own properties.pctl")
-        return family_of_run(rundir.load(target))
+        return read.load(target).family()
     if not target.is_file():
         raise OptionError(f"{target} does not exist; give a run directory or a PRISM model file")
     if props is None:
@@ -236,8 +235,8 @@ def report_command(
     out: Annotated[Path | None, typer.Option(help="Page to write (default: RUN_DIR/report.html).")] = None,
 ) -> None:
     """Write the interactive report.html of a run directory (again, or for one written before it existed)."""
-    from parley_core.api.runs import load
     from parley_core.rundir.page import REPORT, render
+    from parley_core.rundir.read import load
 
     target = out or run_dir / REPORT
     page = render(load(run_dir))

@@ -65,14 +65,14 @@ def baseline_command(
     workers: WorkersOption = None,
 ) -> None:
     """Evaluate the case study's baseline policies (fixed frequency or threshold) with Storm."""
+    from parley_core.evaluate import evaluate_policies
     from parley_core.evaluate.storm import StormEvaluator
-    from parley_core.pipeline import evaluate
 
     with RichReporter(stderr()) as reporter:
         prepared = prepare_case(case, set_, reporter)
         family = prepared.family
         with StormEvaluator(family, workers=workers) as storm:
-            front = evaluate(family, family.baseline_policies(), storm, reporter, stage="baselines (Storm)")
+            front = evaluate_policies(family, family.baseline_policies(), storm, reporter, stage="baselines (Storm)")
     decisions = [dict(b.values) for b in family.baselines]
     if json_:
         print(json.dumps(values_json(prepared.case, prepared.options, front, decisions), indent=2))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
@@ -41,6 +41,12 @@ from parley_core.cli.options import (
 )
 from parley_core.errors import OptionError
 from parley_core.evaluate import EvaluatorKind
+from parley_core.optimality.records import Stopped
+
+if TYPE_CHECKING:
+    from parley_core.model import Family
+    from parley_core.pipeline import RunResult
+    from parley_core.rundir.summary import RunSummary
 
 
 @app.command("run")
@@ -207,22 +213,32 @@ def synthesize_command(
     )
 
 
-def _stopped(by: str) -> str:
-    return "interrupted (Ctrl-C)" if by == "interrupted" else f"stopped by {by}"
+def _stopped(by: Stopped) -> str:
+    return "interrupted (Ctrl-C)" if by is Stopped.INTERRUPTED else f"stopped by {by.value}"
 
 
 def _synthesize(make, warm_start: Path | None = None) -> None:
     """Make a run with ``make(reporter)`` (the API's ``run``, ``exact`` or ``synthesize``)
     under progress bars, then print it."""
-    from parley_core.rundir.write import MAP_ERROR, PLOT_ERROR, REPORT_ERROR, summary
-    from parley_core.verify import TOLERANCE, Verified
-
     console = Console()
     with RichReporter(stderr()) as reporter:
         made = make(reporter)
-    out = made.directory
     result = made.result
     assert result is not None  # made in this process
+    _print_warnings(console, made.directory)
+    _print_sets(console, result)
+    _print_quality(console, made.files.summary, result.family)
+    _print_search(console, made.files.summary, result, warm_start)
+    _print_verification(console, result)
+    console.print(f"wrote {made.directory}/")
+    if result.search.interrupted:
+        raise typer.Exit(130)
+
+
+def _print_warnings(console: Console, out: Path) -> None:
+    """What a run wrote instead of a picture or page a plugin or Bokeh could not make."""
+    from parley_core.rundir.write import MAP_ERROR, PLOT_ERROR, REPORT_ERROR
+
     for missing, what in (
         (PLOT_ERROR, "the policy plot"),
         (MAP_ERROR, "the plugin's map"),
@@ -232,7 +248,10 @@ def _synthesize(make, warm_start: Path | None = None) -> None:
             console.print(
                 f"[yellow]warning:[/] {what} failed; the run is complete without it ({out / missing} says why)"
             )
-    info = summary(result)
+
+
+def _print_sets(console: Console, result: RunResult) -> None:
+    """The front and the baseline, as tables."""
     family = result.family
     constants = [s.constant for s in family.services]
     robust = result.scenarios
@@ -241,27 +260,31 @@ def _synthesize(make, warm_start: Path | None = None) -> None:
     console.print(
         front_table("Baseline", result.baseline, {c: [b.values[c] for b in family.baselines] for c in constants})
     )
-    gain = info["hypervolume_gain_percent"]
-    optimality = info["optimality"]
-    reference = ", ".join(f"{o.name}={fmt(r)}" for o, r in zip(family.objectives, result.reference))
+
+
+def _print_quality(console: Console, info: RunSummary, family: Family) -> None:
+    """Hypervolumes, the certified bound (or exactness) and a robust run's scenarios."""
+    gain = info.hypervolume_gain_percent
+    optimality = info.optimality
+    reference = ", ".join(f"{o.name}={fmt(r)}" for o, r in zip(family.objectives, info.hypervolume_reference))
     console.print(
-        f"hypervolume: front {fmt(info['front']['hypervolume'])}, baseline {fmt(info['baseline']['hypervolume'])}"
+        f"hypervolume: front {fmt(info.front.hypervolume)}, baseline {fmt(info.baseline.hypervolume)}"
         + (f" (gain {gain:+.1f}%)" if gain is not None else "")
         + f"; reference point {reference}"
     )
-    if optimality is not None and optimality["exact"]:
-        details = optimality["search"]
+    counts = optimality.search if optimality is not None else None
+    if optimality is not None and optimality.exact:
+        assert counts is not None  # only branch and bound proves a front exact
         console.print(
-            f"exact: the front is the family's whole Pareto front (branch and bound: {details['nodes']} nodes, "
-            f"{details['pruned']} pruned, {details['evaluated']} policies evaluated, {optimality['seconds']:.1f} s)"
+            f"exact: the front is the family's whole Pareto front (branch and bound: {counts.nodes} nodes, "
+            f"{counts.pruned} pruned, {counts.evaluated} policies evaluated, {optimality.seconds:.1f} s)"
         )
     elif optimality is not None:
-        gap = optimality["gap"]
-        details = optimality.get("search")
-        if details:
+        gap = optimality.gap
+        if counts is not None:
             console.print(
-                f"branch and bound {_stopped(details['stopped_by'])} after {details['nodes']} nodes "
-                f"({details['pruned']} pruned, {details['evaluated']} policies evaluated, {details['open']} open)"
+                f"branch and bound {_stopped(counts.stopped_by)} after {counts.nodes} nodes "
+                f"({counts.pruned} pruned, {counts.evaluated} policies evaluated, {counts.open} open)"
             )
         console.print(
             "optimality: "
@@ -270,14 +293,18 @@ def _synthesize(make, warm_start: Path | None = None) -> None:
                 if gap is not None
                 else "no finite bound"
             )
-            + f"; bound: {optimality['bound_method'].split(':')[0]} (bound.csv)"
+            + f"; bound: {optimality.method_name} (bound.csv)"
         )
-    if info["robust"] is not None:
+    if info.robust is not None:
         console.print(
             "robust: each value is the worst over the scenarios; the front's hypervolume in each: "
-            + ", ".join(f"{s['label']} {fmt(s['front_hypervolume'])}" for s in info["robust"]["scenarios"])
+            + ", ".join(f"{s.label} {fmt(s.front_hypervolume)}" for s in info.robust.scenarios)
             + " (scenarios.csv)"
         )
+
+
+def _print_search(console: Console, info: RunSummary, result: RunResult, warm_start: Path | None) -> None:
+    """What the search did: its budget, where it started, what guided or polished it."""
     search = result.search
     if result.warm_start:
         console.print(f"warm start: the search started from {result.warm_start} policies of {warm_start}")
@@ -285,7 +312,7 @@ def _synthesize(make, warm_start: Path | None = None) -> None:
         f"{search.evaluations} policies evaluated in {search.generations} generations of "
         f"{result.settings.algorithm} "
         f"({result.timings.get('search', 0):.1f} s, stopped by {search.stopped_by.value}); "
-        f"selected {info['selected']['policy']} (knee)"
+        f"selected {info.selected} (knee)"
     )
     if search.walked is not None:
         walked = search.walked
@@ -304,11 +331,17 @@ def _synthesize(make, warm_start: Path | None = None) -> None:
             if not polished.skipped
             else f"polished: not polished ({polished.skipped}); the search had the whole budget"
         )
-    for name, count in info["infinite_values"].items():
+    for name, count in info.infinite_values.items():
         console.print(
             f"{count} of {search.evaluations} evaluated policies have an infinite {name} "
             "(the goal may never be reached); none is on the front unless all are"
         )
+
+
+def _print_verification(console: Console, result: RunResult) -> None:
+    """How Storm re-checked the values (what makes them a guarantee)."""
+    from parley_core.verify import TOLERANCE, Verified
+
     verification = result.verification
     if verification.by is Verified.STORM_RECHECK:
         where = f" in each of {verification.scenarios} scenarios" if verification.scenarios > 1 else ""
@@ -318,9 +351,6 @@ def _synthesize(make, warm_start: Path | None = None) -> None:
             f"evaluator {verification.max_difference:.1e} (relative {verification.max_relative_difference:.1e}, "
             f"within the tolerance {TOLERANCE:g})"
         )
-    console.print(f"wrote {out}/")
-    if search.interrupted:
-        raise typer.Exit(130)
 
 
 @app.command("augment")

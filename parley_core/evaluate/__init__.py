@@ -9,15 +9,18 @@ each objective. :class:`~parley_core.evaluate.quotient.QuotientEvaluator` is the
 from __future__ import annotations
 
 import enum
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
 from parley_core.errors import OptionError
-from parley_core.progress import Progress
+from parley_core.model import Family, Policy, Valued
+from parley_core.progress import NullReporter, Progress, Reporter
 
 if TYPE_CHECKING:
-    from parley_core.model import Family
+    from parley_core.boxes import Box, Pending
+    from parley_core.quotient.coloring import Quotient
     from parley_core.quotient.mdp import QuotientMDP
 
 
@@ -39,17 +42,63 @@ class EvaluatorKind(enum.Enum):
 
 @runtime_checkable
 class Evaluator(Protocol):
-    """Evaluates policies of one family; values are in the objectives' own units and directions."""
+    """Evaluates policies of one family; values are in the objectives' own units and directions.
+
+    Optional capabilities are protocols of their own, asked with ``isinstance``: a
+    :class:`Consulting` evaluator also says which decisions each policy consulted, a
+    :class:`QuotientBacked` one holds the family's quotient that bounds and branch and bound
+    work on."""
 
     name: str
+
+    @property
+    def workers(self) -> int:
+        """Worker processes it evaluates on (1: in this process)."""
+        ...
 
     def evaluate(self, policies: np.ndarray, progress: Progress | None = None) -> np.ndarray:
         """``policies`` [n, n_decisions] int -> values [n, n_objectives] float."""
         ...
 
+    def describe(self) -> dict[str, object]:
+        """What a run's summary.json records of it (``evaluator_details``; empty: nothing)."""
+        ...
+
     def close(self, abort: bool = False) -> None:
         """Release worker processes and other resources; the evaluator may not be used
         afterwards. ``abort``: an error or Ctrl-C is on its way up, end the workers at once."""
+        ...
+
+
+@runtime_checkable
+class Consulting(Evaluator, Protocol):
+    """An evaluator that also says which decisions each policy consulted (those of the
+    valuations its reachable states observe): the search's archive keeps them."""
+
+    def evaluate_consulted(
+        self, policies: np.ndarray, progress: Progress | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Values [n, n_objectives] and consulted decisions [n, n_decisions] bool."""
+        ...
+
+
+@runtime_checkable
+class QuotientBacked(Consulting, Protocol):
+    """An evaluator on the family's quotient MDP: bounds are computed on its quotient, and
+    branch and bound evaluates whole boxes of policies through it."""
+
+    quotient: Quotient
+
+    def submit_box_fronts(self, boxes: list[Box], signs: np.ndarray) -> Pending:
+        """Start evaluating ``boxes`` (in sign space ``signs``); each box's own non-dominated rows."""
+        ...
+
+    def box_seeds(self, rows: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Seeds for branch and bound: ``rows`` with their values as box evaluation gives them."""
+        ...
+
+    def walks_boxes(self) -> bool:
+        """Whether box evaluation walks boxes (then branch and bound evaluates whole ones)."""
         ...
 
 
@@ -68,3 +117,20 @@ def make_evaluator(
     from parley_core.evaluate.storm import StormEvaluator
 
     return StormEvaluator(family, workers=workers)
+
+
+def evaluate_policies(
+    family: Family,
+    policies: Sequence[Policy],
+    evaluator: Evaluator,
+    reporter: Reporter | None = None,
+    stage: str = "evaluate",
+) -> Valued:
+    """All ``policies`` with their values, in the given order."""
+    reporter = reporter or NullReporter()
+    for policy in policies:
+        family.check(policy)
+    reporter.stage(stage, len(policies))
+    rows = np.array([p.values for p in policies], dtype=np.int64).reshape(-1, len(family.decisions))
+    values = evaluator.evaluate(rows, progress=reporter.advance)
+    return Valued(objectives=family.objectives, policies=policies, values=values)

@@ -160,6 +160,9 @@ class BatchStormEvaluator(PoolOwner):
         share = max(MIN_SHARE, math.ceil(remaining / SHARES))
         return max(1, min(size, MAX_BATCH, share, remaining))
 
+    def describe(self) -> dict[str, object]:
+        return {}
+
     def evaluate(self, policies: np.ndarray, progress: Progress | None = None) -> np.ndarray:
         policies = np.asarray(policies, dtype=np.int64).reshape(-1, len(self.family.decisions))
         out = np.empty((len(policies), len(self.family.objectives)))

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from parley_core.evaluate import Evaluator
+from parley_core.evaluate import Consulting, Evaluator
 from parley_core.progress import Progress
 
 
@@ -29,6 +29,13 @@ class CachingEvaluator:
         self._consulted: list[np.ndarray] = []
         self.n_decisions = n_decisions
         self.n_objectives = n_objectives
+
+    @property
+    def workers(self) -> int:
+        return self.evaluator.workers
+
+    def describe(self) -> dict[str, object]:
+        return self.evaluator.describe()
 
     def __len__(self) -> int:
         return len(self._policies)
@@ -70,9 +77,8 @@ class CachingEvaluator:
                 new[key] = row
         if new:
             rows = np.array(list(new.values()))
-            consulting = getattr(self.evaluator, "evaluate_consulted", None)
-            if consulting is not None:
-                values, consulted = consulting(rows, progress=progress)
+            if isinstance(self.evaluator, Consulting):
+                values, consulted = self.evaluator.evaluate_consulted(rows, progress=progress)
             else:
                 values = self.evaluator.evaluate(rows, progress=progress)
                 consulted = np.ones(rows.shape, dtype=bool)

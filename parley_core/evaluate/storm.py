@@ -192,6 +192,9 @@ class StormEvaluator(PoolOwner):
         self.workers = default_workers(workers)
         self._pool: ProcessPoolExecutor | None = None
 
+    def describe(self) -> dict[str, object]:
+        return {}
+
     def evaluate(self, policies: np.ndarray, progress: Progress | None = None) -> np.ndarray:
         policies = np.asarray(policies, dtype=np.int64).reshape(-1, len(self.family.decisions))
         rows = [tuple(int(v) for v in row) for row in policies]

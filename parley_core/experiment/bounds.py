@@ -14,7 +14,8 @@ from attrs import frozen
 from parley_core.errors import OptionError
 from parley_core.evaluate.pool import default_workers, spawn_pool
 from parley_core.experiment.store import Store
-from parley_core.optimality.after_search import METHODS, family_bound
+from parley_core.optimality.after_search import family_bound
+from parley_core.optimality.records import BoundMethod
 from parley_core.progress import Progress
 
 
@@ -29,7 +30,7 @@ class BoundTask:
 
 def compute(task: BoundTask) -> tuple[BoundTask, np.ndarray, str, float]:
     """One instance's bound (in this process: campaigns parallelize over instances)."""
-    from parley_core.pipeline import prepare
+    from parley_core.family.prepare import prepare
     from parley_core.plugin.manager import load_registry
     from parley_core.prism.program import quiet_storm
 
@@ -42,8 +43,7 @@ def compute(task: BoundTask) -> tuple[BoundTask, np.ndarray, str, float]:
 
 def plan(store: Store, campaign: str, case: str, method: str, again: bool = False) -> list[BoundTask]:
     """One task per instance of the campaign without a stored bound (every one with ``again``)."""
-    if method not in METHODS:
-        raise OptionError(f"unknown --method {method!r}; valid: {', '.join(METHODS)}")
+    method = BoundMethod.of(method, cheap=True).value
     have = set() if again else set(store.bounds(campaign))
     first: dict[str, dict[str, Any]] = {}
     for record in store.runs(campaign):

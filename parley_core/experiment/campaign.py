@@ -154,7 +154,8 @@ def plan(
 
 def run_spec(spec: RunSpec) -> RunRecord:
     """Run one campaign run in this process (one worker: campaigns parallelize over runs)."""
-    from parley_core.pipeline import prepare, run
+    from parley_core.family.prepare import prepare
+    from parley_core.pipeline import run
     from parley_core.plugin.manager import load_registry
     from parley_core.prism.program import quiet_storm
 
@@ -291,7 +292,7 @@ def verify_record(case_name: str, record: RunRecord) -> RunRecord:
     """Re-check a stored front with the Storm evaluator; keep Storm's values and the
     non-dominated policies among them, and record the largest difference."""
     from parley_core import metrics
-    from parley_core.pipeline import prepare
+    from parley_core.family.prepare import prepare
     from parley_core.plugin.manager import load_registry
     from parley_core.verify import check_with_storm
 

@@ -22,7 +22,7 @@ import numpy as np
 from parley_core.evaluate.batch import BatchStormEvaluator
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.evaluate.storm import StormEvaluator
-from parley_core.pipeline import make_family
+from parley_core.family.prepare import make_family
 from parley_core.plugin.casestudy import CaseStudy
 from parley_core.progress import Progress
 from parley_core.search import SearchSettings, search

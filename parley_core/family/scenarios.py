@@ -13,11 +13,13 @@ import csv
 import itertools
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from attrs import field, frozen
 
 from parley_core.errors import OptionError
 from parley_core.files import read_text
+from parley_core.model import Family, SystemModel
 
 
 def _pairs(values: Mapping[str, str] | Sequence[tuple[str, str]]) -> tuple[tuple[str, str], ...]:
@@ -120,3 +122,26 @@ class ScenarioSet:
         if not scenarios:
             raise OptionError(f"scenario file {path} has a header and no scenario; add a row per scenario")
         return cls(scenarios)
+
+
+@frozen(kw_only=True)
+class ScenarioModel:
+    """One scenario of a robust run: its options, its system model and its family."""
+
+    scenario: Scenario
+    options: Any
+    system: SystemModel
+    family: Family = field(eq=False, repr=False)
+
+    @property
+    def label(self) -> str:
+        return self.scenario.label
+
+
+def scenario_options(case, base: dict[str, str], scenarios: ScenarioSet) -> list[tuple[Scenario, Any]]:
+    """Each scenario's options: the run's ``--set`` values, then the scenario's over them. A
+    scenario may not set an option ``--set`` gives too (which would win is not obvious)."""
+    clash = sorted(set(base) & set(scenarios.keys))
+    if clash:
+        raise OptionError(f"option {clash[0]!r} is given by --set and by --scenarios; give it in --scenarios only")
+    return [(scenario, case.options_from({**base, **scenario.values})) for scenario in scenarios]

@@ -26,7 +26,7 @@ from attrs import field, frozen
 
 from parley_core.errors import ModelError, OptionError, ParleyDefect
 from parley_core.files import read_text
-from parley_core.model import Baseline, Decision, DecisionKind, Direction, Family, Objective, Service, SystemModel
+from parley_core.model import Baseline, DecisionKind, Direction, Objective, Service, SystemModel, identifier
 from parley_core.plugin.casestudy import CaseStudy
 from parley_core.prism import program as prism
 from parley_core.prism import rewrite, sandbox
@@ -204,7 +204,7 @@ def system_from_file(
             seen.add(key)
             unique.append(baseline)
     system = SystemModel(
-        name=_identifier(path.stem),
+        name=identifier(path.stem),
         prism=text,
         services=services,
         observation=observation,
@@ -292,11 +292,6 @@ def _check_storm_survives(path: Path, make, values) -> None:
         )
 
 
-def _identifier(stem: str) -> str:
-    name = "".join(ch if ch.isalnum() else "_" for ch in stem.lower()) or "model"
-    return name if name[0].isalpha() else f"m_{name}"
-
-
 @frozen(kw_only=True)
 class FileOptions:
     model: str = field(default="", metadata={"help": "the PRISM file"})
@@ -331,25 +326,4 @@ def case_study_for(system: SystemModel, path: Path, rebuild: Callable[[dict[str,
 
     return CaseStudy(
         name=system.name, description=f"user model {path}", options_type=options_type, build=build, prune=True
-    )
-
-
-def family_of_run(run) -> Family:
-    """The family of a run directory, rebuilt from its model.prism and decisions.csv (no
-    plugin needed). It has no original model: Storm can check and simulate its policies,
-    the quotient cannot be built from it."""
-    services = {s.constant: s for s in run.services}
-    decisions = tuple(
-        Decision(name=name, service=services[constant], valuation=valuation)
-        for name, constant, valuation in run.decisions
-    )
-    return Family(
-        name=_identifier(run.summary.get("case_study", "run")),
-        prism=run.model,
-        services=run.services,
-        observation=run.observation,
-        objectives=run.objectives,
-        decisions=decisions,
-        valuations=tuple(dict.fromkeys(d.valuation for d in decisions)),
-        left_out=run.left_out,
     )

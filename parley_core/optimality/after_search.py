@@ -8,25 +8,22 @@ from typing import TYPE_CHECKING
 
 import attrs
 
-from parley_core.errors import OptionError
+from parley_core.evaluate import Evaluator, QuotientBacked
 from parley_core.model import Family
+from parley_core.optimality.records import BoundMethod
 from parley_core.progress import Reporter
 
-METHODS = ("pareto", "ideal", "belief")
-"""The cheap bounds :func:`outer` computes."""
-
 if TYPE_CHECKING:
-    from parley_core.evaluate import Evaluator
     from parley_core.optimality.bound import Bound
     from parley_core.search import SearchResult
 
 
-def family_bound(family: Family, method: str = "pareto") -> Bound:
+def family_bound(family: Family, method: BoundMethod | str = BoundMethod.PARETO) -> Bound:
     """A family's cheap bound on its own ("pareto", "ideal" or "belief"): what a campaign stores."""
     return outer(family, None, method)[0]
 
 
-def outer(family: Family, engine: Evaluator | None, method: str, seconds: float | None = None):
+def outer(family: Family, engine: Evaluator | None, method: BoundMethod | str, seconds: float | None = None):
     """The cheap bound (the ideal point; cut by weighted sums for "pareto", and for "belief"
     after the ideal point is tightened on the relaxation read as a POMDP, Storm's belief
     exploration stopped after ``seconds`` per objective) and the family's relaxed objectives
@@ -35,14 +32,13 @@ def outer(family: Family, engine: Evaluator | None, method: str, seconds: float 
     from parley_core.quotient.bounds import RelaxedObjectives
     from parley_core.quotient.coloring import build_quotient
 
-    if method not in METHODS:
-        raise OptionError(f"unknown bound {method!r}; valid: {', '.join(METHODS)}")
-    quotient = getattr(engine, "quotient", None) or build_quotient(family)
+    method = BoundMethod.of(method, cheap=True)
+    quotient = engine.quotient if isinstance(engine, QuotientBacked) else build_quotient(family)
     bounds = RelaxedObjectives(family, quotient)
     found = ideal_point(family, quotient, bounds)
-    if method == "ideal":
+    if method is BoundMethod.IDEAL:
         return found, bounds
-    if method == "pareto":
+    if method is BoundMethod.PARETO:
         return pareto_outer(family, quotient, found, bounds), bounds
     from parley_core.optimality.belief import belief_ideal
 
@@ -50,7 +46,7 @@ def outer(family: Family, engine: Evaluator | None, method: str, seconds: float 
     cut = pareto_outer(family, quotient, found, bounds)
     if cut is found:
         return found, bounds
-    return attrs.evolve(cut, method=f"{cut.method}; {found.method}", details=found.details), bounds
+    return attrs.evolve(cut, method=f"{cut.method}; {found.method}", belief=found.belief), bounds
 
 
 def refine(family: Family, engine: Evaluator, result: SearchResult, seconds: float | None, reporter: Reporter, cheap):
@@ -72,8 +68,9 @@ def refine(family: Family, engine: Evaluator, result: SearchResult, seconds: flo
             done = now
 
     seeds = (result.policies, result.values)
-    if hasattr(engine, "box_seeds"):
-        seeds = engine.box_seeds(*seeds)
+    boxes = engine if isinstance(engine, QuotientBacked) else None
+    if boxes is not None:
+        seeds = boxes.box_seeds(*seeds)
     exact = branch_and_bound(
         family,
         bounds.quotient,
@@ -83,7 +80,7 @@ def refine(family: Family, engine: Evaluator, result: SearchResult, seconds: flo
         progress=progress,
         root_cuts=found.cuts,
         bounds=bounds,
-        fronts=getattr(engine, "submit_box_fronts", None),
-        whole=bool(getattr(engine, "walks_boxes", lambda: False)()),
+        fronts=boxes.submit_box_fronts if boxes is not None else None,
+        whole=boxes is not None and boxes.walks_boxes(),
     )
     return exact, seeds[1]

@@ -32,6 +32,7 @@ import numpy as np
 
 from parley_core.model import Direction, Family
 from parley_core.optimality.bound import PRECISION, Bound, ideal_point, relaxation_queries, sound_environment
+from parley_core.optimality.records import BeliefValue
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.relaxation import storm_model
@@ -108,7 +109,7 @@ def belief_ideal(
     """The ideal point (``ideal``, else :func:`~parley_core.optimality.bound.ideal_point`), each objective
     Storm's belief exploration answers within ``seconds`` (default :data:`SECONDS`) replaced by
     the POMDP's over-approximation where that is tighter (widened by the solver's precision);
-    ``details`` holds both values per objective, or the MDP's and why Storm gave none."""
+    ``belief`` holds both values per objective, or the MDP's and why Storm gave none."""
     start = time.perf_counter()
     seconds = SECONDS if seconds is None else seconds
     bounds = bounds or RelaxedObjectives(family, quotient)
@@ -116,13 +117,13 @@ def belief_ideal(
     labels, queries = relaxation_queries(family, quotient)
     asked = [belief_query(q) for q in queries]
     point = np.array(ideal.points[0], dtype=float)
-    details: dict[str, object] = {}
+    details: dict[str, BeliefValue] = {}
     for i, (objective, query) in enumerate(zip(family.objectives, asked)):
         if query is None:
             continue
         kind, answer = _within(bounds.relaxation, labels, query, resolution, seconds)
         if kind == "error":  # the MDP's value stands
-            details[objective.name] = {"mdp": float(ideal.points[0][i]), "error": answer}
+            details[objective.name] = BeliefValue(mdp=float(ideal.points[0][i]), error=str(answer))
             continue
         value = float(answer)
         # sound value iteration to PRECISION of the value, on either side of it: widened by twice that
@@ -131,7 +132,7 @@ def belief_ideal(
             point[i] = min(point[i], value + slack)
         else:
             point[i] = max(point[i], value - slack)
-        details[objective.name] = {"mdp": float(ideal.points[0][i]), "pomdp": value}
+        details[objective.name] = BeliefValue(mdp=float(ideal.points[0][i]), pomdp=value)
     return Bound(
         objectives=family.objectives,
         points=point.reshape(1, -1),
@@ -140,5 +141,5 @@ def belief_ideal(
             f"where Storm's belief discretization (resolution {resolution}) answers"
         ),
         seconds=ideal.seconds + time.perf_counter() - start,
-        details={"belief": details},
+        belief=details,
     )

@@ -16,7 +16,7 @@ reward).
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -25,6 +25,7 @@ from attrs import field, frozen
 from parley_core import metrics
 from parley_core.model import Direction, Family, Objective
 from parley_core.optimality.archive import staircase
+from parley_core.optimality.records import BeliefValue, SearchCounts
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 from parley_core.quotient.compile import KernelKind, KernelObjective
@@ -48,8 +49,10 @@ class Bound:
     exact: bool = False
     """The points are the family's whole Pareto front (branch and bound finished)."""
     seconds: float = 0.0
-    details: dict = field(factory=dict, eq=False)
-    """How the bound was found (branch and bound: nodes, pruned, evaluated, open, stopped by)."""
+    search: SearchCounts | None = field(default=None, eq=False)
+    """Branch and bound's counts, where it made the bound."""
+    belief: Mapping[str, BeliefValue] | None = field(default=None, eq=False)
+    """The belief bound's values per objective, where it tightened the ideal point."""
     cuts: tuple = field(default=(), eq=False, repr=False)
     """Half-spaces (weights, level) in sign space (every objective maximised) that every
     policy satisfies, where the method found them."""
@@ -211,14 +214,14 @@ def refined_bound(family: Family, result: ExactResult) -> Bound:
         + (f" (not covering {result.unknown} policies that have no value)" if result.unknown else ""),
         exact=result.exact,
         seconds=result.seconds,
-        details={
-            "nodes": result.nodes,
-            "pruned": result.pruned,
-            "evaluated": result.evaluated,
-            "open": result.open,
-            "unknown": result.unknown,
-            "stopped_by": result.stopped_by,
-        },
+        search=SearchCounts(
+            nodes=result.nodes,
+            pruned=result.pruned,
+            evaluated=result.evaluated,
+            open=result.open,
+            unknown=result.unknown,
+            stopped_by=result.stopped_by,
+        ),
     )
 
 
@@ -306,6 +309,7 @@ def intersect(first: Bound, second: Bound, method: str) -> Bound:
         method=method,
         exact=first.exact or second.exact,
         seconds=first.seconds + second.seconds,
-        details={**first.details, **second.details},
+        search=second.search if second.search is not None else first.search,
+        belief=second.belief if second.belief is not None else first.belief,
         cuts=first.cuts + second.cuts,
     )

@@ -42,6 +42,7 @@ from attrs import field, frozen
 from parley_core.boxes import FLOOR, Box, BoxValues, Pending, Ready, box_rows, local_front
 from parley_core.model import Family
 from parley_core.optimality.archive import Archive, depth, region_points, robust_front
+from parley_core.optimality.records import Stopped
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 
@@ -111,7 +112,7 @@ class ExactResult:
     unknown: int
     open: int
     seconds: float
-    stopped_by: str
+    stopped_by: Stopped
 
 
 def branch_and_bound(
@@ -145,17 +146,59 @@ def branch_and_bound(
     decision's whole range: what an evaluator that walks a box's policies in blocks over its
     widest decision needs to be fast (:class:`~parley_core.quotient.forward.BoxWalker`; on tas
     about 1.6 times faster a policy than the balanced leaves bisection leaves otherwise)."""
-    start = time.perf_counter()
-    bounds = bounds or RelaxedObjectives(family, quotient)
-    signs = bounds.signs
-    domains = [np.array(d.service.values, dtype=np.int64) for d in family.decisions]
-    archive = Archive(len(signs))
-    kept_rows: list[np.ndarray] = []
-    kept_values: list[np.ndarray] = []
+    return BranchAndBound(
+        family,
+        quotient,
+        evaluate,
+        time_limit=time_limit,
+        progress=progress,
+        leaf=leaf,
+        adaptive=adaptive,
+        root_cuts=root_cuts,
+        bounds=bounds,
+        fronts=fronts,
+        whole=whole,
+    ).run(seeds)
 
-    def admit(rows: np.ndarray, values: np.ndarray) -> None:
+
+class _Costs:
+    """What bounding and evaluating cost so far, which sets the adaptive leaf size and the
+    batch size."""
+
+    def __init__(self) -> None:
+        self.bound_seconds = 0.0
+        self.bounds = 0
+        self.policy_seconds = 0.0
+        self.policies = 0
+
+    def leaf_size(self, leaf: int, adaptive: bool) -> int:
+        if not adaptive or not self.policies or not self.bounds:
+            return leaf
+        per_bound = self.bound_seconds / self.bounds
+        per_policy = max(self.policy_seconds / self.policies, 1e-9)
+        return max(leaf, min(LARGEST_LEAF, int(LEAF_COST * per_bound / per_policy)))
+
+    def batch_limit(self, boxes: bool) -> int:
+        most = BOX_BATCH if boxes else BATCH
+        if not self.policies:
+            return most
+        per_policy = max(self.policy_seconds / self.policies, 1e-12)
+        return int(min(most, max(SMALLEST_BATCH, BATCH_SECONDS / per_policy)))
+
+
+class _Kept:
+    """The archive of values found, with the policy of each value it holds."""
+
+    def __init__(self, signs: np.ndarray) -> None:
+        self.signs = signs
+        self.archive = Archive(len(signs))
+        self.rows: list[np.ndarray] = []
+        self.values: list[np.ndarray] = []
+
+    def admit(self, rows: np.ndarray, values: np.ndarray) -> None:
         # what the archive would reject anyway is dropped in bulk: what the batch itself or
         # the archive weakly dominates (the archive keeps the first of equal values)
+        signs, archive = self.signs, self.archive
         keep = local_front(values, signs)
         rows, values = rows[keep], values[keep]
         if len(archive.points) and len(values):
@@ -168,232 +211,289 @@ def branch_and_bound(
         for row, value in zip(rows, values):
             # kept before the archive takes it: a Ctrl-C in between leaves no archived value
             # without its policy (the archive's values decide what was pruned)
-            kept_rows.append(row)
-            kept_values.append(value)
+            self.rows.append(row)
+            self.values.append(value)
             if not archive.add(value * signs):
-                kept_rows.pop()
-                kept_values.pop()
+                self.rows.pop()
+                self.values.pop()
 
-    if seeds is not None and len(seeds[0]):
-        admit(*seeds)
-    total = math.prod(int(s) for s in bounds.sizes)
-    resolved = 0.0
-    root = Node(np.zeros(len(domains), dtype=np.int64), bounds.sizes - 1, cuts=tuple(root_cuts))
-    stack: list[tuple[float, int, Node]] = [(0.0, 0, root)]
-    scale = np.ones(len(signs))
-    counter = itertools.count(1)
-    pending: list[Box] = []
-    # per pending box the node it covers (None: a tried policy, also inside a node of its own),
-    # so that a batch lost to Ctrl-C goes back on the stack with that node's bound
-    covering: list[Node | None] = []
-    nodes = pruned = evaluated = unknown = 0
-    stopped_by = "complete"
+    def front(self, n_decisions: int) -> tuple[np.ndarray, np.ndarray]:
+        """The policies whose values the archive still holds (it drops what a later value
+        dominates), cut to their robust front."""
+        signs = self.signs
+        rows = np.array(self.rows, dtype=np.int64).reshape(-1, n_decisions)
+        values = np.array(self.values, dtype=float).reshape(-1, len(signs))
+        points = self.archive.points
+        alive = np.array([(points == np.maximum(v * signs, FLOOR)).all(axis=1).any() for v in values], dtype=bool)
+        rows, values = rows[alive.reshape(-1)], values[alive.reshape(-1)]
+        kept = robust_front(values * signs)
+        return rows[kept], values[kept]
 
-    spent = {"bound": 0.0, "bounds": 0, "policy": 0.0, "policies": 0, "pending": 0}
 
-    def leaf_size() -> int:
-        if not adaptive or not spent["policies"] or not spent["bounds"]:
-            return leaf
-        per_bound = spent["bound"] / spent["bounds"]
-        per_policy = max(spent["policy"] / spent["policies"], 1e-9)
-        return max(leaf, min(LARGEST_LEAF, int(LEAF_COST * per_bound / per_policy)))
+class _Batches:
+    """Boxes waiting to be evaluated (``pending``, each with the node it covers, or None for
+    a tried policy) and batches being evaluated (``inflight``, oldest first); their values go
+    into ``kept`` in the order submitted, so that of equal values the archive keeps the same
+    policy whatever the timing."""
 
-    inflight: deque[tuple[Pending, list[Node | None]]] = deque()
+    def __init__(self, search: BranchAndBound) -> None:
+        self.search = search
+        self.pending: list[Box] = []
+        self.covering: list[Node | None] = []
+        self.pending_size = 0
+        self.inflight: deque[tuple[Pending, list[Node | None]]] = deque()
 
-    def batch_limit() -> int:
-        most = BATCH if fronts is None else BOX_BATCH
-        if not spent["policies"]:
-            return most
-        per_policy = max(spent["policy"] / spent["policies"], 1e-12)
-        return int(min(most, max(SMALLEST_BATCH, BATCH_SECONDS / per_policy)))
+    def take(self, batch: BoxValues) -> None:
+        search = self.search
+        values = np.asarray(batch.values, dtype=float).reshape(len(batch.rows), len(search.signs))
+        search.costs.policy_seconds += batch.seconds
+        search.costs.policies += batch.evaluated
+        search.evaluated += batch.evaluated
+        search.unknown += int(np.isnan(values).any(axis=1).sum())
+        search.kept.admit(batch.rows, values)
 
-    tried = Tried()
-
-    def take(batch: BoxValues) -> None:
-        nonlocal evaluated, unknown
-        values = np.asarray(batch.values, dtype=float).reshape(len(batch.rows), len(signs))
-        spent["policy"] += batch.seconds
-        spent["policies"] += batch.evaluated
-        evaluated += batch.evaluated
-        unknown += int(np.isnan(values).any(axis=1).sum())
-        admit(batch.rows, values)
-
-    def settle() -> None:
+    def settle(self) -> None:
         # the oldest batch leaves the queue once its values are in: one that Ctrl-C cut short
         # is still there for the interrupted search to open its nodes again
-        take(inflight[0][0].result())
-        inflight.popleft()
+        self.take(self.inflight[0][0].result())
+        self.inflight.popleft()
 
-    def harvest(wait: bool) -> None:
-        # in the order submitted, so that of equal values the archive keeps the same policy
-        while inflight and (wait or inflight[0][0].done()):
-            settle()
+    def harvest(self, wait: bool) -> None:
+        while self.inflight and (wait or self.inflight[0][0].done()):
+            self.settle()
 
-    def flush() -> None:
-        if not pending:
+    def flush(self) -> None:
+        if not self.pending:
             return
-        if fronts is not None:
-            inflight.append((fronts(list(pending), signs), list(covering)))
+        search = self.search
+        if search.fronts is not None:
+            self.inflight.append((search.fronts(list(self.pending), search.signs), list(self.covering)))
         else:
             began = time.perf_counter()
-            rows = np.vstack([box_rows(box, domains) for box in pending])
-            values = np.asarray(evaluate(rows), dtype=float).reshape(len(rows), len(signs))
-            seconds = time.perf_counter() - began
-            inflight.append((Ready(BoxValues(rows=rows, values=values, evaluated=len(rows), seconds=seconds)), []))
-        pending.clear()
-        covering.clear()
-        spent["pending"] = 0
+            rows = np.vstack([box_rows(box, search.domains) for box in self.pending])
+            values = np.asarray(search.evaluate(rows), dtype=float).reshape(len(rows), len(search.signs))
+            batch = BoxValues(rows=rows, values=values, evaluated=len(rows), seconds=time.perf_counter() - began)
+            self.inflight.append((Ready(batch), []))
+        self.pending.clear()
+        self.covering.clear()
+        self.pending_size = 0
         # the first batch is waited for: its time is what the adaptive leaf size is measured by
-        if not spent["policies"]:
-            harvest(wait=True)
-        while len(inflight) > IN_FLIGHT:
-            settle()
+        if not search.costs.policies:
+            self.harvest(wait=True)
+        while len(self.inflight) > IN_FLIGHT:
+            self.settle()
 
-    def queue(lo: np.ndarray, hi: np.ndarray, node: Node | None) -> None:
+    def queue(self, lo: np.ndarray, hi: np.ndarray, node: Node | None) -> None:
         box = Box(lo, hi)
-        pending.append(box)
-        covering.append(node)
-        spent["pending"] += box.size
+        self.pending.append(box)
+        self.covering.append(node)
+        self.pending_size += box.size
         # the first box goes at once: its time is what the adaptive leaf size is measured by
-        if not spent["policies"] or spent["pending"] >= batch_limit():
-            flush()
+        costs = self.search.costs
+        if not costs.policies or self.pending_size >= costs.batch_limit(self.search.fronts is not None):
+            self.flush()
 
-    def resolve(share: int) -> None:
-        nonlocal resolved
-        resolved += share
-        if progress is not None:
-            elapsed = (time.perf_counter() - start) / time_limit if time_limit else 0.0
-            progress(max(resolved / total, min(1.0, elapsed)))
-
-    working: Node | None = None  # popped, and not yet pruned, queued or split
-    try:
-        while stack:
-            working = None
-            if time_limit is not None and time.perf_counter() - start > time_limit:
-                stopped_by = "time"
-                break
-            harvest(wait=False)
-            if fronts is not None and not inflight:  # the evaluator is idle: it gets what is pending
-                flush()
-            _, _, node = heapq.heappop(stack)
-            working = node
-            nodes += 1
-            share = node.size()
-            if node.ideal is not None and not len(archive.open_corners(node.ideal, list(node.cuts))):
-                pruned += 1
-                resolve(share)
-                continue
-            view = bounds.restrict(node.lo, node.hi)
-            consulted = bounds.consulted(view)
-            lo, hi = node.lo.copy(), node.hi.copy()
-            hi[~consulted] = lo[~consulted]
-            width = hi - lo + 1
-            if math.prod(int(w) for w in width) <= leaf_size():
-                queue(lo, hi, node)
-                resolve(share)
-                continue
-            began = time.perf_counter()
-            ideal = np.maximum(bounds.ideal(view), FLOOR)
-            if node.ideal is not None:
-                ideal = np.minimum(ideal, node.ideal)
-            else:  # the root: scale distances by the family's extent
-                spread = ideal - archive.points.min(axis=0) if len(archive.points) else np.ones(len(signs))
-                scale = np.where(np.isfinite(spread) & (spread > 0), spread, 1.0)
-            cuts = list(node.cuts)
-            corners = archive.open_corners(ideal, cuts)
-            for _ in range(CUTS if bounds.combines else 0):
-                if not len(corners):
-                    break
-                gaps = ideal[None, :] - corners
-                if not np.isfinite(gaps).all(axis=1).any():
-                    break
-                corner = corners[np.argmax(np.where(np.isfinite(gaps), gaps, -np.inf).min(axis=1))]
-                weights = 1.0 / np.maximum(ideal - corner, 1e-12)
-                weights /= weights.max()
-                cuts.append((weights, float(bounds.weighted(view, weights)[0])))
-                corners = archive.open_corners(ideal, cuts)
-            spent["bound"] += time.perf_counter() - began
-            spent["bounds"] += 1
-            if not len(corners):
-                pruned += 1
-                resolve(share)
-                continue
-            # where the bounds' schedulers are known, each is tried as a policy (by the value each
-            # decision takes in most states: where they agree, it is the policy that attains the
-            # bound) and the node is split in the decision they disagree on most, between the two
-            # values taken most, as PAYNT's abstraction refinement does; else in the widest
-            # consulted decision (with ``whole``, the widest but one)
-            votes = [bounds.votes(view, actions) for actions in view.schedulers]
-            for vote in votes:
-                choice = np.where(vote.sum(axis=1) > 0, vote.argmax(axis=1), lo)
-                if tried.add(choice):
-                    queue(choice, choice.copy(), None)
-            spans = np.where(consulted, width, 0)
-            split = None
-            if votes:
-                tally = np.sum(votes, axis=0)
-                disagreement = np.where(spans > 1, tally.sum(axis=1) - tally.max(axis=1), 0)
-                if disagreement.max() > 0:
-                    split = d = int(np.argmax(disagreement))
-                    first, second = np.argsort(-tally[d], kind="stable")[:2]
-                    middle = int(min(max(min(first, second), lo[d]), hi[d] - 1))
-            if split is None:
-                d = int(np.argmax(spans))
-                if whole:
-                    spans[d] = 0
-                    if spans.max() > 1:
-                        d = int(np.argmax(spans))
-                middle = (lo[d] + hi[d]) // 2
-            upper_lo, lower_hi = lo.copy(), hi.copy()
-            upper_lo[d], lower_hi[d] = middle + 1, middle
-            resolve(share - math.prod(int(w) for w in width))  # what collapsed decisions repeat
-            # until a first leaf is evaluated, depth first: its time sets the adaptive leaf size
-            # (nodes bounded best first before that would be split far finer than they need,
-            # while the workers wait); of equal priorities the latest first
-            priority = -depth(ideal, corners, scale) if spent["policies"] else -math.inf
-            heapq.heappush(stack, (priority, -next(counter), Node(upper_lo, hi, ideal, tuple(cuts))))
-            heapq.heappush(stack, (priority, -next(counter), Node(lo, lower_hi, ideal, tuple(cuts))))
-        working = None
-        flush()
-        harvest(wait=True)
-    except KeyboardInterrupt:  # Ctrl-C: the front and the bound so far, as with a time limit
-        stopped_by = "interrupted"
-        lost = [n for n in covering if n is not None]
-        queued: list[Node | None] = list(lost)  # the nodes a pending or submitted box stands for
-        for batch, nodes_of in inflight:
+    def reopen(self) -> list[Node]:
+        """After Ctrl-C: the nodes whose boxes were pending or in a batch the workers did not
+        finish (the others' values are taken), and the nodes any of them stood for."""
+        lost = [n for n in self.covering if n is not None]
+        queued: list[Node | None] = list(lost)
+        for batch, nodes_of in self.inflight:
             queued.extend(nodes_of)
             try:
-                take(batch.result())
+                self.take(batch.result())
             except BaseException:  # the workers took the Ctrl-C too: their boxes are open again
                 lost.extend(n for n in nodes_of if n is not None)
+        working = self.search.working
         if working is not None and all(n is not working for n in queued):
             lost.append(working)
-        inflight.clear()
-        pending.clear()
-        covering.clear()
-        stack.extend((0.0, -next(counter), n) for n in lost)
-    rows = np.array(kept_rows, dtype=np.int64).reshape(-1, len(domains))
-    values = np.array(kept_values, dtype=float).reshape(-1, len(signs))
-    # the archive drops what a later value dominates: keep the policies whose value it still holds
-    alive = np.array([(archive.points == np.maximum(v * signs, FLOOR)).all(axis=1).any() for v in values], dtype=bool)
-    rows, values = rows[alive.reshape(-1)], values[alive.reshape(-1)]
-    kept = robust_front(values * signs)
-    rows, values = rows[kept], values[kept]
-    open_points = [region_points(n.ideal, n.cuts) * signs for _, _, n in stack if n.ideal is not None]
-    if any(n.ideal is None for _, _, n in stack):
-        everything = bounds.restrict(np.zeros(len(domains), dtype=np.int64), bounds.sizes - 1)
-        open_points.append(bounds.ideal(everything) * signs)
-    bound = np.vstack([values, *open_points]) if open_points else values
-    return ExactResult(
-        policies=rows,
-        values=values,
-        bound=bound,
-        exact=not stack and unknown == 0,
-        nodes=nodes,
-        pruned=pruned,
-        evaluated=evaluated,
-        unknown=unknown,
-        open=len(stack),
-        seconds=time.perf_counter() - start,
-        stopped_by=stopped_by,
-    )
+        self.inflight.clear()
+        self.pending.clear()
+        self.covering.clear()
+        return lost
+
+
+class BranchAndBound:
+    """One branch and bound over a family (see the module docstring and :func:`branch_and_bound`,
+    which makes one and runs it): nodes are taken best first from ``stack`` and each is
+    pruned, evaluated as a leaf, or bounded, its bounds' schedulers tried, and split."""
+
+    def __init__(
+        self,
+        family: Family,
+        quotient: Quotient,
+        evaluate: Callable[[np.ndarray], np.ndarray],
+        *,
+        time_limit: float | None = None,
+        progress: Callable[[float], None] | None = None,
+        leaf: int = LEAF,
+        adaptive: bool = True,
+        root_cuts: tuple[tuple[np.ndarray, float], ...] = (),
+        bounds: RelaxedObjectives | None = None,
+        fronts: Callable[[list[Box], np.ndarray], Pending] | None = None,
+        whole: bool = False,
+    ) -> None:
+        self.start = time.perf_counter()
+        self.bounds = bounds = bounds or RelaxedObjectives(family, quotient)
+        self.evaluate, self.fronts = evaluate, fronts
+        self.time_limit, self.progress = time_limit, progress
+        self.leaf, self.adaptive, self.whole = leaf, adaptive, whole
+        self.signs = bounds.signs
+        self.domains = [np.array(d.service.values, dtype=np.int64) for d in family.decisions]
+        self.kept = _Kept(self.signs)
+        self.costs = _Costs()
+        self.batches = _Batches(self)
+        self.tried = Tried()
+        self.total = math.prod(int(s) for s in bounds.sizes)
+        self.resolved = 0.0
+        root = Node(np.zeros(len(self.domains), dtype=np.int64), bounds.sizes - 1, cuts=tuple(root_cuts))
+        self.stack: list[tuple[float, int, Node]] = [(0.0, 0, root)]
+        self.scale = np.ones(len(self.signs))
+        self.counter = itertools.count(1)
+        self.nodes = self.pruned = self.evaluated = self.unknown = 0
+        self.stopped_by = Stopped.COMPLETE
+        self.working: Node | None = None
+        """The node popped and not yet pruned, queued or split (reopened on Ctrl-C)."""
+
+    def run(self, seeds: tuple[np.ndarray, np.ndarray] | None = None) -> ExactResult:
+        if seeds is not None and len(seeds[0]):
+            self.kept.admit(*seeds)
+        batches = self.batches
+        try:
+            while self.stack:
+                self.working = None
+                if self.time_limit is not None and time.perf_counter() - self.start > self.time_limit:
+                    self.stopped_by = Stopped.TIME
+                    break
+                batches.harvest(wait=False)
+                if self.fronts is not None and not batches.inflight:  # the evaluator is idle: give it what is pending
+                    batches.flush()
+                _, _, node = heapq.heappop(self.stack)
+                self.working = node
+                self.nodes += 1
+                self._visit(node)
+            self.working = None
+            batches.flush()
+            batches.harvest(wait=True)
+        except KeyboardInterrupt:  # Ctrl-C: the front and the bound so far, as with a time limit
+            self.stopped_by = Stopped.INTERRUPTED
+            self.stack.extend((0.0, -next(self.counter), n) for n in batches.reopen())
+        return self._result()
+
+    def _visit(self, node: Node) -> None:
+        share = node.size()
+        if node.ideal is not None and not len(self.kept.archive.open_corners(node.ideal, list(node.cuts))):
+            self._resolve(share, pruned=True)
+            return
+        bounds = self.bounds
+        view = bounds.restrict(node.lo, node.hi)
+        consulted = bounds.consulted(view)
+        lo, hi = node.lo.copy(), node.hi.copy()
+        hi[~consulted] = lo[~consulted]  # decisions no reached state consults collapse to one value
+        width = hi - lo + 1
+        if math.prod(int(w) for w in width) <= self.costs.leaf_size(self.leaf, self.adaptive):
+            self.batches.queue(lo, hi, node)
+            self._resolve(share)
+            return
+        ideal, cuts, corners = self._bound(node, view)
+        if not len(corners):
+            self._resolve(share, pruned=True)
+            return
+        votes = self._try_schedulers(view, lo)
+        d, middle = self._split_point(votes, np.where(consulted, width, 0), lo, hi)
+        upper_lo, lower_hi = lo.copy(), hi.copy()
+        upper_lo[d], lower_hi[d] = middle + 1, middle
+        self._resolve(share - math.prod(int(w) for w in width))  # what collapsed decisions repeat
+        # until a first leaf is evaluated, depth first: its time sets the adaptive leaf size
+        # (nodes bounded best first before that would be split far finer than they need,
+        # while the workers wait); of equal priorities the latest first
+        priority = -depth(ideal, corners, self.scale) if self.costs.policies else -math.inf
+        heapq.heappush(self.stack, (priority, -next(self.counter), Node(upper_lo, hi, ideal, cuts)))
+        heapq.heappush(self.stack, (priority, -next(self.counter), Node(lo, lower_hi, ideal, cuts)))
+
+    def _bound(self, node: Node, view) -> tuple[np.ndarray, tuple[tuple[np.ndarray, float], ...], np.ndarray]:
+        """The node's ideal point, its half-spaces (its parent's and up to :data:`CUTS` new
+        weighted sums, each aimed at the open corner farthest inside the ideal box) and the
+        archive's corners still open within them."""
+        began = time.perf_counter()
+        bounds, archive = self.bounds, self.kept.archive
+        ideal = np.maximum(bounds.ideal(view), FLOOR)
+        if node.ideal is not None:
+            ideal = np.minimum(ideal, node.ideal)
+        else:  # the root: scale distances by the family's extent
+            spread = ideal - archive.points.min(axis=0) if len(archive.points) else np.ones(len(self.signs))
+            self.scale = np.where(np.isfinite(spread) & (spread > 0), spread, 1.0)
+        cuts = list(node.cuts)
+        corners = archive.open_corners(ideal, cuts)
+        for _ in range(CUTS if bounds.combines else 0):
+            if not len(corners):
+                break
+            gaps = ideal[None, :] - corners
+            if not np.isfinite(gaps).all(axis=1).any():
+                break
+            corner = corners[np.argmax(np.where(np.isfinite(gaps), gaps, -np.inf).min(axis=1))]
+            weights = 1.0 / np.maximum(ideal - corner, 1e-12)
+            weights /= weights.max()
+            cuts.append((weights, float(bounds.weighted(view, weights)[0])))
+            corners = archive.open_corners(ideal, cuts)
+        self.costs.bound_seconds += time.perf_counter() - began
+        self.costs.bounds += 1
+        return ideal, tuple(cuts), corners
+
+    def _try_schedulers(self, view, lo: np.ndarray) -> list[np.ndarray]:
+        """Where the bounds know their schedulers, each is tried as a policy (by the value each
+        decision takes in most states: where they agree, it is the policy that attains the
+        bound); their votes per decision and value."""
+        votes = [self.bounds.votes(view, actions) for actions in view.schedulers]
+        for vote in votes:
+            choice = np.where(vote.sum(axis=1) > 0, vote.argmax(axis=1), lo)
+            if self.tried.add(choice):
+                self.batches.queue(choice, choice.copy(), None)
+        return votes
+
+    def _split_point(self, votes: list[np.ndarray], spans: np.ndarray, lo: np.ndarray, hi: np.ndarray):
+        """The decision to split and the last value of its lower half: where the schedulers
+        disagree most, between the two values taken most (PAYNT's abstraction refinement); else
+        the widest consulted decision (with ``whole``, the widest but one), halved."""
+        if votes:
+            tally = np.sum(votes, axis=0)
+            disagreement = np.where(spans > 1, tally.sum(axis=1) - tally.max(axis=1), 0)
+            if disagreement.max() > 0:
+                d = int(np.argmax(disagreement))
+                first, second = np.argsort(-tally[d], kind="stable")[:2]
+                return d, int(min(max(min(first, second), lo[d]), hi[d] - 1))
+        d = int(np.argmax(spans))
+        if self.whole:
+            spans = spans.copy()
+            spans[d] = 0
+            if spans.max() > 1:
+                d = int(np.argmax(spans))
+        return d, (lo[d] + hi[d]) // 2
+
+    def _resolve(self, share: float, pruned: bool = False) -> None:
+        self.pruned += int(pruned)
+        self.resolved += share
+        if self.progress is not None:
+            elapsed = (time.perf_counter() - self.start) / self.time_limit if self.time_limit else 0.0
+            self.progress(max(self.resolved / self.total, min(1.0, elapsed)))
+
+    def _result(self) -> ExactResult:
+        rows, values = self.kept.front(len(self.domains))
+        signs, stack = self.signs, self.stack
+        open_points = [region_points(n.ideal, n.cuts) * signs for _, _, n in stack if n.ideal is not None]
+        if any(n.ideal is None for _, _, n in stack):
+            everything = self.bounds.restrict(np.zeros(len(self.domains), dtype=np.int64), self.bounds.sizes - 1)
+            open_points.append(self.bounds.ideal(everything) * signs)
+        return ExactResult(
+            policies=rows,
+            values=values,
+            bound=np.vstack([values, *open_points]) if open_points else values,
+            exact=not stack and self.unknown == 0,
+            nodes=self.nodes,
+            pruned=self.pruned,
+            evaluated=self.evaluated,
+            unknown=self.unknown,
+            open=len(stack),
+            seconds=time.perf_counter() - self.start,
+            stopped_by=self.stopped_by,
+        )

@@ -15,7 +15,7 @@ from parley_core.plugin.options import convert, parse_assignments
 from parley_core.plugin.policymap import PolicyMap
 from parley_core.plugin.simulator import Simulator
 from parley_core.progress import Reporter
-from parley_core.urc.adaptive import EventModel
+from parley_core.urc.events import EventModel
 
 
 class PolicyTable(Mapping[tuple[int, ...], Mapping[str, int]]):

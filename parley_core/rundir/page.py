@@ -4,8 +4,8 @@ hover, a click that shows the policy, and requirement sliders that filter the fr
 Bokeh's standalone documents (:func:`bokeh.embed.file_html` with the inline resources) make
 one self-contained, offline file: the views are linked by shared data sources and small
 CustomJS callbacks, without a server. The page is built from the run directory's files
-(a :class:`~parley_core.api.runs.Run`, which :mod:`parley_core.rundir.write` loads from the
-directory it has just written), so any run directory, old or new, gets the same page.
+(a :class:`~parley_core.rundir.read.RunDirectory`, which :mod:`parley_core.rundir.write`
+reads back from the directory it has just written), so any run directory, old or new, gets the same page.
 
 The policy view: where the URC observes two variables or more, a grid over two of them
 coloured by each service's decision, on the plugin's map where it gives one
@@ -20,16 +20,14 @@ from typing import Any
 import numpy as np
 
 from parley_core.model import Direction
+from parley_core.rundir.read import RunDirectory
 from parley_core.views.bokeh_scripts import FILTER, SHOW_POLICY
 from parley_core.views.stable import stable_ids
-
-Run = Any
-"""A :class:`parley_core.api.runs.Run` (not imported: the API imports this module)."""
 
 REPORT = "report.html"
 
 
-def _axes(run: Run) -> tuple[int, int]:
+def _axes(run: RunDirectory) -> tuple[int, int]:
     """(x, y) objective indices as ``front.png`` lays them out."""
     if len(run.objectives) == 1:
         return 0, 0
@@ -40,23 +38,22 @@ def _finite(values: np.ndarray) -> list[float | None]:
     return [float(v) if math.isfinite(v) else None for v in values]
 
 
-def policy_table(run: Run) -> tuple[dict[str, list[Any]], list[int], list[str]]:
+def policy_table(run: RunDirectory) -> tuple[dict[str, list[Any]], list[int], list[str]]:
     """The decision table's columns (observation variables, then one per service constant,
     one row per consulted valuation) and, per decision, its row and constant."""
-    files = run.files
-    constants = [s.constant for s in files.services]
+    constants = [s.constant for s in run.services]
     rows: dict[tuple[int, ...], int] = {}
     row_of, constant_of = [], []
-    for _name, constant, valuation in files.decisions:
-        row_of.append(rows.setdefault(valuation, len(rows)))
-        constant_of.append(constant)
-    columns: dict[str, list[Any]] = {name: [v[k] for v in rows] for k, name in enumerate(files.observation)}
+    for decision in run.decisions:
+        row_of.append(rows.setdefault(decision.valuation, len(rows)))
+        constant_of.append(decision.service.constant)
+    columns: dict[str, list[Any]] = {name: [v[k] for v in rows] for k, name in enumerate(run.observation)}
     for constant in constants:
         columns[constant] = [float("nan")] * len(rows)
     return columns, row_of, constant_of
 
 
-def render(run: Run) -> str:
+def render(run: RunDirectory) -> str:
     """The page's HTML (self-contained)."""
     from bokeh.embed import file_html
     from bokeh.layouts import column, row
@@ -137,7 +134,7 @@ def render(run: Run) -> str:
             from parley_core.views.frontplot import staircase
 
             signs = -np.array([objectives[i].direction.sign, objectives[j].direction.sign])
-            reference = np.array([run.summary.reference[i], run.summary.reference[j]])
+            reference = np.array([run.summary.hypervolume_reference[i], run.summary.hypervolume_reference[j]])
             outline = staircase(bound[:, [i, j]], signs, reference)[:-1]
             plot.line(
                 outline[:, 0],
@@ -229,9 +226,9 @@ def render(run: Run) -> str:
     )
     summary = run.summary
     facts = [
-        f"hypervolume {summary.front_hypervolume:.6g} against the baseline's {summary.baseline_hypervolume:.6g}",
-        f"values verified by {summary.verified_by}",
-        f"{summary.evaluations} policies evaluated ({summary.algorithm}, seed {summary.seed})",
+        f"hypervolume {summary.front.hypervolume:.6g} against the baseline's {summary.baseline.hypervolume:.6g}",
+        f"values verified by {summary.verification.by.value}",
+        f"{summary.search.evaluations} policies evaluated ({summary.search.algorithm}, seed {summary.seed})",
     ]
     if run.optimality is not None and run.optimality.gap is not None:
         facts.append(f"gap to the certified bound {100 * run.optimality.gap:.1f} %")

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from parley_core.plugin.policymap import PolicyMap
+from parley_core.rundir.read import RunDirectory
 from parley_core.views.bokeh_scripts import SLICE
 
 
@@ -19,15 +20,15 @@ def read_map(directory: Path) -> PolicyMap | None:
     return PolicyMap.from_json(json.loads(path.read_text())) if path.is_file() else None
 
 
-def grids(run: Any, table_source: Any, columns: dict[str, list[Any]]) -> list[Any]:
+def grids(run: RunDirectory, table_source: Any, columns: dict[str, list[Any]]) -> list[Any]:
     """The grid figures (one per service, at most three) and the slice menus, or nothing
     when the URC observes fewer than two variables."""
     from bokeh.models import BooleanFilter, CDSView, ColorBar, CustomJS, LinearColorMapper, Select
     from bokeh.palettes import Viridis256
     from bokeh.plotting import figure
 
-    observation = list(run.files.observation)
-    found = read_map(run.directory)
+    observation = list(run.observation)
+    found = read_map(run.path)
     if found is not None and {found.x, found.y} <= set(observation):
         x, y = found.x, found.y
     elif len(observation) >= 2:
@@ -57,7 +58,7 @@ def grids(run: Any, table_source: Any, columns: dict[str, list[Any]]) -> list[An
         for menu in menus:
             menu.js_on_change("value", callback)
     views: list[Any] = []
-    for service in run.files.services[:3]:
+    for service in run.services[:3]:
         mapper = LinearColorMapper(palette=Viridis256, low=service.low, high=service.high, nan_color="white")
         grid = figure(
             width=440,

@@ -35,8 +35,8 @@ def controller(run: RunDirectory, policy: str) -> URC:
     """The URC of one front policy of a run directory."""
     chosen = run.policy(policy)
     table: dict[tuple[int, ...], dict[str, int]] = {}
-    for (_name, constant, valuation), value in zip(run.decisions, chosen.values):
-        table.setdefault(valuation, {})[constant] = value
+    for decision, value in zip(run.decisions, chosen.values):
+        table.setdefault(decision.valuation, {})[decision.service.constant] = value
     return URC(
         observation=run.observation,
         services=run.services,

@@ -26,6 +26,17 @@ from parley_core.model import Valued
 from parley_core.pipeline import RunResult
 from parley_core.plugin.options import options_as_dict
 from parley_core.rundir import policies as policy_files
+from parley_core.rundir.summary import (
+    Guided,
+    ModelRecord,
+    OptimalityRecord,
+    Polished,
+    RobustRecord,
+    RunSummary,
+    ScenarioRecord,
+    SearchRecord,
+    SetRecord,
+)
 from parley_core.views.frontplot import front_figure
 from parley_core.views.plotting import save
 
@@ -84,25 +95,24 @@ def spread(result: RunResult, valued: Valued) -> float | None:
     return metrics.spread(values[metrics.nondominated(values, directions)], directions)
 
 
-def optimality(result: RunResult, front_hypervolume: float) -> dict[str, Any] | None:
+def optimality(result: RunResult, front_hypervolume: float) -> OptimalityRecord | None:
     """How much of the certified bound's hypervolume the front covers (same reference point)."""
     bound = result.bound
     if bound is None:
         return None
     bound_hv = bound.hypervolume(result.reference)
     gap = (bound_hv - front_hypervolume) / bound_hv if bound_hv > 0 and np.isfinite(bound_hv) else None
-    return {
-        "bound_hypervolume": bound_hv,
-        "front_hypervolume": front_hypervolume,
-        "gap": gap,
-        "bound_method": bound.method,
-        "exact": bound.exact,
-        "bound_points": len(bound.points),
-        "seconds": round(bound.seconds, 4),
-        # branch and bound's nodes and policies; the belief bound's values (MDP and POMDP) per objective
-        **({"search": search} if (search := {k: v for k, v in bound.details.items() if k != "belief"}) else {}),
-        **({"belief": bound.details["belief"]} if "belief" in bound.details else {}),
-    }
+    return OptimalityRecord(
+        bound_hypervolume=bound_hv,
+        front_hypervolume=front_hypervolume,
+        gap=gap,
+        bound_method=bound.method,
+        exact=bound.exact,
+        bound_points=len(bound.points),
+        seconds=round(bound.seconds, 4),
+        search=bound.search,
+        belief=bound.belief,
+    )
 
 
 def bound_csv(result: RunResult) -> str:
@@ -138,27 +148,25 @@ def scenarios_csv(result: RunResult) -> str:
     return out.getvalue()
 
 
-def scenarios_summary(result: RunResult) -> dict[str, Any] | None:
+def scenarios_summary(result: RunResult) -> RobustRecord | None:
     """A robust run's scenarios, and the front's and baseline's hypervolume in each (same
     reference point as the run's)."""
     if not result.scenarios:
         return None
     assert result.front_scenarios is not None and result.baseline_scenarios is not None
     directions = [o.direction for o in result.family.objectives]
-    return {
-        "objective": "worst case over the scenarios (front.csv, baseline.csv); each scenario's values: scenarios.csv",
-        "scenarios": [
-            {
-                "label": model.label,
-                "set": model.scenario.values,
-                "front_hypervolume": metrics.hypervolume(result.front_scenarios[:, s], directions, result.reference),
-                "baseline_hypervolume": metrics.hypervolume(
-                    result.baseline_scenarios[:, s], directions, result.reference
-                ),
-            }
+    return RobustRecord(
+        objective="worst case over the scenarios (front.csv, baseline.csv); each scenario's values: scenarios.csv",
+        scenarios=[
+            ScenarioRecord(
+                label=model.label,
+                values=model.scenario.values,
+                front_hypervolume=metrics.hypervolume(result.front_scenarios[:, s], directions, result.reference),
+                baseline_hypervolume=metrics.hypervolume(result.baseline_scenarios[:, s], directions, result.reference),
+            )
             for s, model in enumerate(result.scenarios)
         ],
-    }
+    )
 
 
 def infinite_counts(result: RunResult) -> dict[str, int]:
@@ -168,82 +176,72 @@ def infinite_counts(result: RunResult) -> dict[str, int]:
     return {o.name: int(n) for o, n in zip(result.family.objectives, counts) if n}
 
 
-def summary(result: RunResult) -> dict[str, Any]:
+def search_record(result: RunResult) -> SearchRecord:
+    search, settings = result.search, result.settings
+    walked, polished = search.walked, search.polished
+    return SearchRecord(
+        algorithm=settings.algorithm,
+        population=settings.population,
+        generations=settings.generations,
+        generations_done=search.generations,
+        evaluations=search.evaluations,
+        max_evaluations=settings.max_evaluations,
+        time_limit_seconds=settings.time_limit,
+        stopped_by=search.stopped_by,
+        interrupted=search.interrupted,
+        warm_start_policies=result.warm_start,
+        guided=None
+        if walked is None
+        else Guided(walked_policies=len(walked.policies), seconds=round(walked.seconds, 4), skipped=walked.skipped),
+        polished=None
+        if polished is None
+        else Polished(
+            evaluations=polished.evaluations,
+            expanded_policies=polished.expanded,
+            seconds=round(polished.seconds, 4),
+            skipped=polished.skipped,
+        ),
+    )
+
+
+def summary(result: RunResult) -> RunSummary:
+    """The run's ``summary.json`` record."""
     family = result.family
-    search = result.search
     hv_front = hypervolume(result, result.front)
     hv_base = hypervolume(result, result.baseline)
-    timings = {k: round(v, 4) for k, v in result.timings.items()}
-    return {
-        "case_study": result.prepared.case.name,
-        "description": result.prepared.system.description,
-        "options": options_as_dict(result.prepared.options),
-        "seed": result.settings.seed,
-        "search": {
-            "algorithm": result.settings.algorithm,
-            "population": result.settings.population,
-            "generations": result.settings.generations,
-            "generations_done": search.generations,
-            "evaluations": search.evaluations,
-            "max_evaluations": result.settings.max_evaluations,
-            "time_limit_seconds": result.settings.time_limit,
-            "stopped_by": search.stopped_by.value,
-            "interrupted": search.interrupted,
-            "warm_start_policies": result.warm_start,
-            **(
-                {
-                    "guided": {
-                        "walked_policies": len(search.walked.policies),
-                        "seconds": round(search.walked.seconds, 4),
-                        "skipped": search.walked.skipped,
-                    }
-                }
-                if search.walked is not None
-                else {}
-            ),
-            **(
-                {
-                    "polished": {
-                        "evaluations": search.polished.evaluations,
-                        "expanded_policies": search.polished.expanded,
-                        "seconds": round(search.polished.seconds, 4),
-                        "skipped": search.polished.skipped,
-                    }
-                }
-                if search.polished is not None
-                else {}
-            ),
-        },
-        "evaluator": result.evaluator.value,
-        "evaluator_details": result.evaluator_info,
-        "storm_solver": "native, sound value iteration, relative precision 1e-12",
-        "workers": result.workers,
-        "model": {
-            "observation": list(family.observation),
-            "services": [s.to_json() for s in family.services],
-            "decisions": len(family.decisions),
-            "valuations": len(family.valuations),
-            "valuations_left_out": len(family.left_out),
-            "left_out": [list(v) for v in family.left_out],
-        },
-        "objectives": [o.to_json() for o in family.objectives],
-        "constraints": [str(c) for c in result.settings.constraints],
-        "optimality": optimality(result, hv_front),
-        "robust": scenarios_summary(result),
-        "infinite_values": infinite_counts(result),
-        "front": {"size": len(result.front), "hypervolume": hv_front, "spread": spread(result, result.front)},
-        "baseline": {"size": len(result.baseline), "hypervolume": hv_base, "spread": spread(result, result.baseline)},
-        "hypervolume_reference": list(result.reference),
-        "hypervolume_gain": hv_front - hv_base,
-        "hypervolume_gain_percent": (100.0 * (hv_front - hv_base) / hv_base) if hv_base > 0 else None,
-        "verification": result.verification.to_json(),
-        "selected": {
-            "policy": result.front.policies[result.selected].name,
-            "rule": "knee (closest to the ideal point, normalized)",
-        },
-        "timings_seconds": timings,
-        "versions": versions(),
-    }
+    return RunSummary(
+        case_study=result.prepared.case.name,
+        description=result.prepared.system.description,
+        options=options_as_dict(result.prepared.options),
+        seed=result.settings.seed,
+        search=search_record(result),
+        evaluator=result.evaluator.value,
+        evaluator_details=result.evaluator_info,
+        storm_solver="native, sound value iteration, relative precision 1e-12",
+        workers=result.workers,
+        model=ModelRecord(
+            observation=family.observation,
+            services=family.services,
+            decisions=len(family.decisions),
+            valuations=len(family.valuations),
+            valuations_left_out=len(family.left_out),
+            left_out=family.left_out,
+        ),
+        objectives=family.objectives,
+        constraints=result.settings.constraints,
+        optimality=optimality(result, hv_front),
+        robust=scenarios_summary(result),
+        infinite_values=infinite_counts(result),
+        front=SetRecord(size=len(result.front), hypervolume=hv_front, spread=spread(result, result.front)),
+        baseline=SetRecord(size=len(result.baseline), hypervolume=hv_base, spread=spread(result, result.baseline)),
+        hypervolume_reference=result.reference,
+        hypervolume_gain=hv_front - hv_base,
+        hypervolume_gain_percent=(100.0 * (hv_front - hv_base) / hv_base) if hv_base > 0 else None,
+        verification=result.verification,
+        selected=result.front.policies[result.selected].name,
+        timings_seconds={k: round(v, 4) for k, v in result.timings.items()},
+        versions=versions(),
+    )
 
 
 def plot_front(result: RunResult, path: Path) -> None:
@@ -290,7 +288,7 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path
         constants = [s.constant for s in family.services]
         baseline_columns = {c: [b.values[c] for b in family.baselines] for c in constants}
         (staging / "baseline.csv").write_text(front_csv(result.baseline, baseline_columns))
-        (staging / "summary.json").write_text(json.dumps(summary(result), indent=2) + "\n")
+        (staging / "summary.json").write_text(json.dumps(summary(result).to_json(), indent=2) + "\n")
         if result.bound is not None:
             (staging / "bound.csv").write_text(bound_csv(result))
         if result.scenarios:
@@ -331,13 +329,13 @@ def _policy_map(case, result: RunResult, staging: Path) -> None:
 
 def _interactive_report(staging: Path) -> None:
     """report.html, from the files already written; a failure costs the page, not the run."""
-    from parley_core.api.runs import load
-    from parley_core.rundir import page as run_page
+    from parley_core.rundir import page
+    from parley_core.rundir.read import load
 
     try:
-        (staging / run_page.REPORT).write_text(run_page.render(load(staging)), encoding="utf-8")
+        (staging / page.REPORT).write_text(page.render(load(staging)), encoding="utf-8")
     except Exception as exc:
-        (staging / run_page.REPORT).unlink(missing_ok=True)
+        (staging / page.REPORT).unlink(missing_ok=True)
         (staging / REPORT_ERROR).write_text(
             "the interactive report could not be made, so there is no report.html:\n"
             + "".join(traceback.format_exception(exc))

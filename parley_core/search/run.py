@@ -9,7 +9,7 @@ import attrs
 import numpy as np
 from pymoo.core.termination import TerminateIfAny
 
-from parley_core.evaluate import Evaluator
+from parley_core.evaluate import Evaluator, QuotientBacked
 from parley_core.evaluate.cache import CachingEvaluator
 from parley_core.model import Family
 from parley_core.progress import Progress
@@ -80,10 +80,9 @@ def search(
     # one improver serves the walks and the polishing (building it reads the whole relaxation)
     # its scores on as many threads as the evaluator has workers: they wait while the walks and
     # the polishing compute scores (a campaign's one-worker runs stay on one core each)
-    threads = int(getattr(evaluator, "workers", 1) or 1)
-    improver = (
-        improver_for(family, getattr(evaluator, "quotient", None), threads) if chosen.guided or chosen.polish else ""
-    )
+    threads = max(1, evaluator.workers)
+    quotient = evaluator.quotient if isinstance(evaluator, QuotientBacked) else None
+    improver = improver_for(family, quotient, threads) if chosen.guided or chosen.polish else ""
     polished = None
     if chosen.polish:
         reason = unavailable(family, improver, constrained=bool(settings.constraints))

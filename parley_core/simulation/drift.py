@@ -30,8 +30,9 @@ from parley_core.model import Family
 from parley_core.plugin.simulator import Z99, wilson
 from parley_core.progress import NullReporter, Reporter
 from parley_core.simulation.missions import Chain, Observer, build_chain, policy_values, run_mission
-from parley_core.urc.adaptive import AdaptiveController, Beliefs, Calibration, EventModel
+from parley_core.urc.adaptive import AdaptiveController, Beliefs, Calibration
 from parley_core.urc.controller import URC
+from parley_core.urc.events import EventModel
 
 RAMP_LEVELS = 9
 """A ramp takes at most this many distinct values (one DTMC per policy and value)."""

@@ -22,8 +22,8 @@ from parley_core.model import Family
 from parley_core.prism import program as prism
 from parley_core.quotient.mdp import read_umb
 from parley_core.simulation.storm import simulation_plans
-from parley_core.urc.adaptive import EventModel
 from parley_core.urc.controller import URC
+from parley_core.urc.events import EventModel
 
 
 @frozen(kw_only=True)

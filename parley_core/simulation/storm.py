@@ -41,8 +41,8 @@ _Reward = tuple[Literal["reward"], str, int, int, float]
 def family_for_controller(model: Path, controller: URC, props: Path) -> Family:
     """A user's model augmented with a controller's services and observation (as `parley
     synthesize` augmented it), for simulating the controller on it."""
+    from parley_core.family.prepare import make_family
     from parley_core.family.usermodel import system_from_file
-    from parley_core.pipeline import make_family
 
     system = system_from_file(model, controller.services, [",".join(controller.observation)], props)
     return make_family(system, prune=True)

@@ -119,12 +119,12 @@ def validate(
     counting from 1) and
     the baselines of a run directory on the case study's simulator (module docstring)."""
     from parley_core.plugin.manager import load_registry
-    from parley_core.rundir import read as rundir
+    from parley_core.rundir import read
     from parley_core.rundir.select import controller, select
 
     reporter = reporter or NullReporter()
-    run = rundir.load(run_dir)
-    case_name = run.summary.get("case_study")
+    run = read.load(run_dir)
+    case_name = run.case_study
     if not case_name:
         raise OptionError(f"{run_dir} is a run of `parley synthesize`; validation needs a case study's run")
     case = load_registry().get(str(case_name))
@@ -132,17 +132,17 @@ def validate(
         raise OptionError(
             f"the {case.name} plugin offers no simulator to validate against; case studies with one: turtlebot (MuJoCo)"
         )
-    if run.summary.get("robust"):
+    if run.summary.robust is not None:
         raise OptionError(
             f"{run_dir} is a robust run: its front.csv holds worst cases over scenarios, which no one simulated "
             "system has; validate a run of one scenario (parley run without --scenarios)"
         )
-    options = case.options_from_json(run.summary.get("options", {}))
+    options = case.options_from_json(run.summary.options)
     if case.warm_up is not None:
         case.warm_up(options, reporter)
     reporter.stage("build model")
     system = case.build(options)
-    from parley_core.pipeline import make_family
+    from parley_core.family.prepare import make_family
 
     if make_family(system, prune=case.prune).prism != run.model:
         raise OptionError(
@@ -164,7 +164,7 @@ def validate(
     jobs: list[tuple[str, str, URC]] = [("chosen", chosen, controller(run, chosen))]
     if baselines:
         for name, decision, values in _baselines(run_dir, names):
-            table = {v: dict(decision) for v in {d[2] for d in run.decisions}}
+            table = {v: dict(decision) for v in {d.valuation for d in run.decisions}}
             urc = URC(
                 observation=run.observation,
                 services=run.services,

@@ -76,7 +76,7 @@ def family(
     the case study's own setting (False for a system model). ``width`` cuts every service's
     range to its first ``width`` values (a small family, for exhaustive checks), dropping the
     baselines that leave it."""
-    from parley_core.pipeline import make_family
+    from parley_core.family.prepare import make_family
 
     if isinstance(source, SystemModel):
         system, default_prune = source, False

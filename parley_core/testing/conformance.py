@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 
 from parley_core import metrics
-from parley_core.pipeline import Prepared, prepare, run
+from parley_core.family.prepare import Prepared, prepare
+from parley_core.pipeline import run
 from parley_core.plugin.casestudy import CaseStudy
 from parley_core.prism import program as prism
 from parley_core.search import SearchSettings

@@ -38,34 +38,9 @@ from attrs import field, frozen, validators
 
 from parley_core.errors import ObservationError, ParleyError, PolicyError
 from parley_core.urc.controller import URC, read_document
+from parley_core.urc.events import Likelihood, bernoulli
 
 FORMAT = "parley-adaptive-urc/1"
-
-Events = Callable[[Mapping[str, np.ndarray], Mapping[str, np.ndarray]], tuple[np.ndarray, np.ndarray, np.ndarray]]
-"""``events(before, after)``: for transitions from states with variable values ``before`` to
-``after`` (arrays, one entry per transition), which are trials, their outcomes (0/1) and
-their contexts (integers)."""
-
-Likelihood = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
-"""``probability(value, outcomes, contexts)``: each event's probability if the parameter is ``value``."""
-
-
-def bernoulli(value: float, outcomes: np.ndarray, contexts: np.ndarray) -> np.ndarray:
-    """The default likelihood: the parameter is the probability of outcome 1 per trial."""
-    return np.where(np.asarray(outcomes, dtype=bool), value, 1.0 - value)
-
-
-@frozen(kw_only=True)
-class EventModel:
-    """What a plugin tells the estimator about one drifting parameter (the
-    :class:`~parley_core.CaseStudy` field ``events``, by option name)."""
-
-    description: str
-    variables: tuple[str, ...] = field(converter=tuple)
-    """The state variables ``events`` reads."""
-    events: Events
-    probability: Likelihood = bernoulli
-
 
 PolicyLikelihood = Callable[[int, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 """``likelihood(value_index, policies, outcomes, contexts)``: each event's probability under

@@ -1,5 +1,7 @@
-"""Interactive, self-contained HTML reports (Bokeh standalone documents): a run's
-``report.html`` (:mod:`.run_page`) and a campaign's (:mod:`.campaign_page`)."""
+"""Pictures, with no file format and no domain logic: matplotlib figures on the Agg canvas
+(:mod:`.plotting`, :mod:`.frontplot`), the helpers of the self-contained Bokeh pages
+(:mod:`.bokeh_scripts`, :mod:`.stable`; the pages themselves are :mod:`parley_core.rundir.page`
+and :mod:`parley_core.experiment.page`) and progress bars on stderr (:mod:`.richprogress`)."""
 
 from __future__ import annotations
 
