@@ -3,6 +3,7 @@ given to pymoo as constraints, and used to filter fronts."""
 
 from __future__ import annotations
 
+import enum
 from collections.abc import Sequence
 
 import numpy as np
@@ -11,18 +12,26 @@ from attrs import field, frozen, validators
 from parley_core.errors import OptionError
 
 
+class Operator(enum.Enum):
+    """How a constraint compares an objective's value with its bound."""
+
+    AT_LEAST = ">="
+    AT_MOST = "<="
+
+
 @frozen(kw_only=True)
 class Constraint:
     """A requirement on one objective: ``success>=0.8``, ``cost<=60``."""
 
     objective: str
-    operator: str = field(validator=validators.in_((">=", "<=")))
+    operator: Operator = field(converter=Operator, validator=validators.instance_of(Operator))
+    """``>=`` or ``<=`` (an :class:`Operator`; its text is accepted too)."""
     bound: float
 
     @classmethod
     def parse(cls, text: str) -> Constraint:
-        for operator in (">=", "<="):
-            name, sep, bound = text.partition(operator)
+        for operator in Operator:
+            name, sep, bound = text.partition(operator.value)
             if sep:
                 try:
                     return cls(objective=name.strip(), operator=operator, bound=float(bound))
@@ -40,10 +49,10 @@ class Constraint:
 
     def violation(self, values: np.ndarray) -> np.ndarray:
         """How far values are from meeting the constraint (<= 0: met), as pymoo wants it."""
-        return self.bound - values if self.operator == ">=" else values - self.bound
+        return self.bound - values if self.operator is Operator.AT_LEAST else values - self.bound
 
     def __str__(self) -> str:
-        return f"{self.objective}{self.operator}{self.bound:g}"
+        return f"{self.objective}{self.operator.value}{self.bound:g}"
 
 
 def meets(values: np.ndarray, names: Sequence[str], constraints: Sequence[Constraint]) -> np.ndarray:

@@ -116,7 +116,9 @@ def robot_family():
     return prepare(case, case.options_from(QUICK)).family
 
 
-def test_missions_at_a_constant_value_agree_with_storm(robot_family):
+def test_missions_at_a_constant_value_agree_with_storm(robot_family, tmp_path):
+    from parley_core.simulation.drift_report import plot, to_json
+
     family = robot_family
     fixed = _urc(family, [2] * len(family.decisions), "every-2")
     # the drift starts after the last mission: every mission runs at p=0.01
@@ -129,6 +131,14 @@ def test_missions_at_a_constant_value_agree_with_storm(robot_family):
         mean, low, high = result.phase(series, objective, 0, 20)
         assert low <= value <= high, (objective, mean, low, high, value)
     assert series.in_force[:, 0].tolist() == [400] * 20
+    # drift.json says the same: the phase before the drift (all 20 missions) and Storm's values
+    (entry,) = to_json(result)["controllers"]
+    assert entry["name"] == "fixed" and "after" not in entry["phases"]
+    for objective, value in zip(result.objectives, storm):
+        assert entry["phases"]["before"][objective]["mean"] == result.phase(series, objective, 0, 20)[0]
+        assert entry["storm"][0][objective] == value and entry["storm"][0]["p"] == 0.01
+    plot(result, tmp_path / "drift.png")
+    assert (tmp_path / "drift.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_the_adaptive_urc_follows_a_jump_in_the_slip_probability(robot_family):
@@ -165,6 +175,7 @@ def test_an_adaptive_controller_needs_an_event_model(robot_family):
         )
 
 
+@pytest.mark.slow
 def test_cli_adapt_and_simulate_with_drift(tmp_path):
     runner = CliRunner()
     quick = CLI_QUICK
@@ -228,6 +239,7 @@ def test_a_warm_start_puts_the_earlier_front_in_the_first_population(robot_famil
     assert np.array_equal(cold[:baselines], few[:baselines])
 
 
+@pytest.mark.slow
 def test_cli_warm_start_needs_a_run_of_the_same_family(tmp_path):
     runner = CliRunner()
     quick = CLI_QUICK

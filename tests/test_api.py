@@ -51,6 +51,7 @@ def made(tmp_path_factory):
     return root, run
 
 
+@pytest.mark.slow
 def test_the_api_and_the_cli_write_the_same_run_directory(made):
     root, run = made
     result = runner.invoke(
@@ -159,6 +160,7 @@ def python_blocks() -> list[str]:
     return re.findall(r"```python\n(.*?)```", (DOCS / "api.md").read_text(), flags=re.S)
 
 
+@pytest.mark.slow
 def test_the_docs_examples_run(tmp_path, monkeypatch, capsys):
     for name in ("pump.prism", "pump.pctl"):
         shutil.copy(DOCS / "tutorial" / name, tmp_path / name)
@@ -182,6 +184,7 @@ def test_the_docs_examples_run(tmp_path, monkeypatch, capsys):
     assert namespace["report"].page.is_file() and "| all |" in out
 
 
+@pytest.mark.slow
 def test_the_readmes_example_runs(tmp_path, monkeypatch):
     """README's block as written, with a small budget and the run directory in tmp_path."""
     readme = (DOCS.parent / "README.md").read_text()

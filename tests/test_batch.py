@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import stormpy
-from conftest import toy_system
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from test_quotient import OBJECTIVES, STUCK, breaking_system, synchronised_system
 
+from conftest import toy_system
 from parley_core.evaluate.batch import BatchChecker, BatchStormEvaluator, BatchTask
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.family.augment import augment
@@ -47,6 +47,7 @@ def sample(family, count: int, seed: int = 0) -> np.ndarray:
     return np.vstack([baselines.reshape(-1, len(family.decisions)), rows])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "case, assignments",
     [
@@ -92,6 +93,7 @@ def test_bounded_and_reachability_objectives_share_a_program():
     agree(family, policies)
 
 
+@pytest.mark.slow
 def test_synchronising_modules_and_deadlocks_agree():
     synchronised = synchronised_system(("full", "P=? [F b=3]", "max"), ("load", 'R{"b"}=? [C<=6]', "min"))
     family = make(synchronised)
@@ -202,6 +204,7 @@ def test_the_dispatch_probabilities_name_each_policy_and_nothing_else():
         dispatch_policy(1 / 40, 40)  # the uniform split of a program written before the weights
 
 
+@pytest.mark.slow
 def test_progress_counts_each_policy_once():
     family = make("web_ids", [])
     policies = family.random(np.random.default_rng(0), 411)  # the last batch once ran past the end
@@ -332,7 +335,6 @@ class _Notes:
 
 def test_a_model_without_policy_programs_is_checked_by_the_reference_and_says_so():
     from conftest import TOY
-
     from parley_core.verify import check_with_storm
 
     # the model takes a name policy programs need: verification still happens, by the

@@ -11,11 +11,11 @@ import json
 
 import numpy as np
 import pytest
-from conftest import toy_system
 from test_bound import _families
 from test_foreign import MODELS, _paths
 from typer.testing import CliRunner
 
+from conftest import toy_system
 from parley_core.cli import app
 from parley_core.family.prepare import make_family
 from parley_core.family.usermodel import system_from_file
@@ -66,6 +66,7 @@ def test_queries_storms_belief_exploration_takes():
         assert belief_query(other) is None
 
 
+@pytest.mark.slow
 def test_the_pomdp_bound_is_tighter_where_the_observation_hides_the_state():
     fam = _guess()
     quotient = build_quotient(fam)
@@ -85,6 +86,7 @@ def _cases():
     yield "guess", _guess()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, case", list(_cases()), ids=lambda v: v if isinstance(v, str) else "")
 def test_every_policy_is_within_the_belief_bound(name, case):
     quotient = build_quotient(case)
@@ -114,6 +116,7 @@ def test_storm_stopped_leaves_the_mdps_value_and_says_why():
     assert reasons and all("did not finish in 0.001 s" in r for r in reasons)
 
 
+@pytest.mark.slow
 def test_a_run_with_the_belief_bound_says_so_and_holds_its_front(tmp_path):
     out = tmp_path / "run"
     quick = ["--set", "size=3", "--set", "seed=2", "--set", "max_interval=4"]
@@ -130,6 +133,7 @@ def test_a_run_with_the_belief_bound_says_so_and_holds_its_front(tmp_path):
     assert covered.any(axis=0).all()
 
 
+@pytest.mark.slow
 def test_bound_time_stops_storms_belief_exploration_in_a_run(tmp_path):
     out = tmp_path / "run"
     quick = ["--set", "size=3", "--set", "seed=2", "--set", "max_interval=4"]
@@ -146,6 +150,7 @@ def test_an_unknown_bound_is_one_line_and_status_2():
     assert result.exit_code == 2 and "belief" in result.stderr and "Traceback" not in result.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("index", [2, 3, 4, 5], ids=lambda i: f"{MODELS[i].folder}/{MODELS[i].model}")
 def test_the_belief_bound_holds_on_models_we_did_not_write(foreign, index, tmp_path):
     # PAYNT's maze (a POMDP family: the URC sees only walls) and PRISM's brp, as tests/test_foreign.py reads them

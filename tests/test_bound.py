@@ -11,10 +11,10 @@ from pathlib import Path
 import attrs
 import numpy as np
 import pytest
-from conftest import toy_system
 from test_quotient import OBJECTIVES, STUCK, breaking_system, synchronised_system
 from typer.testing import CliRunner
 
+from conftest import toy_system
 from parley_core.cli import app
 from parley_core.family.usermodel import system_from_file
 from parley_core.model import DecisionKind, Direction, Objective, Service
@@ -127,6 +127,7 @@ def test_the_kernels_ideal_point_is_storms_on_the_relaxation(name, case):
         assert abs(a - b) <= 1e-6 * max(1.0, abs(b)), (name, objective.name, a, b)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["robot_grid 5x5", "web_ids", "tas", "synchronised"])
 def test_storms_multi_objective_points_of_the_relaxation_lie_inside_the_pareto_bound(name):
     # Storm's own multi-objective engine (PCAA) on the relaxation: the vertices of its
@@ -176,6 +177,7 @@ def test_every_run_writes_its_bound_and_the_front_is_inside_it(tmp_path):
     )
 
 
+@pytest.mark.slow
 def test_rewards_to_one_target_give_a_pareto_bound_on_a_model_we_did_not_write(foreign, monkeypatch):
     # PAYNT's dpm: power and lost requests, both expected until "finished"; their weighted
     # sums are one expected reward, bounded from below by policy iteration's value checked as
@@ -232,6 +234,7 @@ def test_a_guess_is_lowered_to_a_post_fixpoint_or_refused():
     assert not post_fixpoint(state_actions, action_entries, targets, probabilities, allowed, free, reward, y, 50)
 
 
+@pytest.mark.slow
 def test_a_reward_and_a_bounded_reach_combine_and_the_bound_holds(foreign):
     # PAYNT's herman (coin biases cut to 0..6 and three bits): expected steps to stabilise, and
     # stabilised within 30 steps; weighted sums by backward induction over the 30 steps,
@@ -259,6 +262,7 @@ def test_a_reward_and_a_bounded_reach_combine_and_the_bound_holds(foreign):
     assert (levels < ideal_point(case, quotient, relaxed).points[0] * relaxed.signs @ weights.T + 1e-9).all()
 
 
+@pytest.mark.slow
 def test_where_one_scheduler_attains_the_ideal_point_one_weighted_sum_shows_it(foreign, monkeypatch):
     # PAYNT's herman from bias 1: one scheduler of the relaxation has both the fewest steps and
     # the likeliest stabilisation within 30 steps, so no weighted sum can cut the ideal box;
@@ -280,6 +284,7 @@ def test_where_one_scheduler_attains_the_ideal_point_one_weighted_sum_shows_it(f
     assert outer.dominates(storm).all()
 
 
+@pytest.mark.slow
 def test_a_sub_family_of_one_policy_has_schedulers_that_vote_for_it(foreign):
     # restricted to one policy, every scheduler the bounds find is that policy: its votes
     # (the mixed-radix digits of each state's action) name the policy's value of each decision

@@ -75,6 +75,7 @@ def test_evaluate_constant_and_policies_file_agree_with_the_baseline(free_map, t
     assert json.loads(result.stdout)["policies"][0]["values"] == pytest.approx(by_name["interval-2"])
 
 
+@pytest.mark.slow
 def test_run_writes_the_run_directory_and_is_reproducible(tmp_path):
     first, second = tmp_path / "a", tmp_path / "b"
     for out in (first, second):
@@ -146,6 +147,7 @@ def test_run_and_evaluate_with_the_storm_evaluator(tmp_path):
     )
 
 
+@pytest.mark.slow
 def test_run_stops_at_an_evaluation_budget_or_a_time_limit(tmp_path):
     result = invoke(
         "run", "robot_grid", *QUICK, "--population", "8", "--max-evaluations", "30", "--out", str(tmp_path / "b")

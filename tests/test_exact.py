@@ -100,6 +100,7 @@ def _cases():
 CASES = list(_cases())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name,fam", CASES, ids=[c[0] for c in CASES])
 def test_branch_and_bound_equals_enumeration(name, fam):
     quotient, evaluate = _solver(fam)
@@ -141,6 +142,7 @@ def test_box_rows_enumerate_like_itertools():
     assert box.size == 12 and box_rows(box, domains).tolist() == expected
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("workers", [1, 2])
 def test_box_fronts_give_the_same_front(workers):
     """Whole boxes evaluated where they are solved, each cut to its own front, give branch
@@ -158,6 +160,7 @@ def test_box_fronts_give_the_same_front(workers):
     np.testing.assert_allclose(evaluate(result.policies), result.values, rtol=1e-12, atol=1e-15)
 
 
+@pytest.mark.slow
 def test_pruning_happens_and_seeds_count():
     fam = narrow("robot_grid", ["size=4", "seed=1"], 3)
     quotient, evaluate = _solver(fam)
@@ -181,6 +184,7 @@ def test_stopped_early_the_bound_is_sound(limit):
     assert bound.dominates(values).all()
 
 
+@pytest.mark.slow
 def test_stopped_early_on_a_model_we_did_not_write_the_bound_is_sound(foreign):
     # PAYNT's dpm with six decisions free (729 policies): the bound left after a second holds
     # the open sub-families' regions (ideal box and half-spaces, as a staircase); finished,
@@ -197,6 +201,7 @@ def test_stopped_early_on_a_model_we_did_not_write_the_bound_is_sound(foreign):
     _assert_same_front(finished.values, values, fam)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("biases", ["0..2", "22..24"])
 def test_on_herman_the_front_is_enumerations(foreign, biases):
     # PAYNT's herman, four coin biases of three values and three bits (648 policies): steps to
@@ -300,6 +305,7 @@ def test_archive_corners_are_exactly_the_undominated_region():
     assert not any((kept >= p).all(axis=1).sum() > 1 for p in kept)  # no duplicates, none dominated
 
 
+@pytest.mark.slow
 def test_parley_exact_writes_an_exact_run(tmp_path):
     out = tmp_path / "exact"
     result = CliRunner().invoke(

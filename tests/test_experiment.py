@@ -144,6 +144,7 @@ def _campaign_command(store, name="k"):
     ]
 
 
+@pytest.mark.slow
 def test_a_campaign_killed_with_sigkill_resumes_without_losing_or_repeating(tmp_path):
     store = tmp_path / "k.sqlite"
     process = subprocess.Popen(
@@ -177,6 +178,7 @@ def test_a_campaign_killed_with_sigkill_resumes_without_losing_or_repeating(tmp_
     assert all(before[(i, r)] == f for i, r, f in rows if (i, r) in before), "a stored run was computed again"
 
 
+@pytest.mark.slow
 def test_the_dask_path_on_a_local_cluster(tmp_path):
     distributed = pytest.importorskip("dask.distributed")
     specs = plan("d", ROBOT, [("seed=1",), ("seed=2",)], ["size=4", "max_interval=3"], 1, TINY)
@@ -195,6 +197,7 @@ def test_the_dask_path_on_a_local_cluster(tmp_path):
         assert [[list(v) for v in r.front.values] for r in store.runs("d")] == values
 
 
+@pytest.mark.slow
 def test_scheduler_that_cannot_be_reached(tmp_path):
     pytest.importorskip("dask.distributed")
     specs = plan("d", ROBOT, [("seed=1",)], ["size=4"], 1, TINY)
@@ -202,6 +205,7 @@ def test_scheduler_that_cannot_be_reached(tmp_path):
         execute(specs, store, scheduler="tcp://127.0.0.1:1")
 
 
+@pytest.mark.slow
 def test_unverified_fronts_are_verified_later_by_storm(tmp_path):
     from parley_core.experiment.campaign import verify_stored
 
@@ -272,3 +276,27 @@ def test_campaign_bounds_are_stored_once_and_give_the_reports_gap_column(tmp_pat
     with open(tmp_path / "report" / "table2.csv") as handle:
         rows = list(csv.DictReader(handle))
     assert all(float(r["median_bound_gap"]) >= -1e-9 for r in rows if r["median_bound_gap"])
+
+
+def test_the_scalability_row_measures_both_evaluators_on_the_same_policies():
+    from parley_core.experiment.scalability import measure, table3_markdown
+    from parley_core.plugin.manager import load_registry
+
+    row = measure(
+        load_registry().get("robot_grid"),
+        ["size=3", "seed=1", "max_interval=3"],
+        storm_policies=3,
+        quotient_policies=5,
+        population=4,
+        generations=2,
+        workers=1,
+    )
+    assert row["max_difference"] < 1e-9  # the quotient's values are Storm's (the reference and policy programs)
+    assert row["search_evaluations"] == 8 and row["quotient_states"] > 0 and row["decisions"] > 0
+    assert (
+        row["storm_ms"] > 0
+        and row["quotient_ms"] > 0
+        and row["ratio"] == pytest.approx(row["storm_ms"] / row["quotient_ms"])
+    )
+    table = table3_markdown([row])
+    assert "size=3 seed=1 max_interval=3" in table.splitlines()[-1]

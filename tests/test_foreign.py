@@ -109,6 +109,7 @@ def _paths(foreign: Path, spec: Foreign, tmp_path: Path) -> tuple[Path, Path]:
     return model, properties
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("spec", MODELS, ids=lambda s: f"{s.folder}/{s.model}")
 def test_the_quotient_agrees_with_storm(foreign, spec, tmp_path):
     model, properties = _paths(foreign, spec, tmp_path)
@@ -128,6 +129,7 @@ def test_the_quotient_agrees_with_storm(foreign, spec, tmp_path):
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("spec", MODELS, ids=lambda s: f"{s.folder}/{s.model}")
 def test_a_short_synthesis_reports_storms_values(foreign, spec, tmp_path):
     model, properties = _paths(foreign, spec, tmp_path)
@@ -165,6 +167,7 @@ def test_a_short_synthesis_reports_storms_values(foreign, spec, tmp_path):
             )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("spec", MODELS, ids=lambda s: f"{s.folder}/{s.model}")
 def test_policy_programs_agree_with_the_augmented_model(foreign, spec, tmp_path):
     # the default verification path (policy programs) against the reference (the augmented
@@ -185,6 +188,7 @@ def test_policy_programs_agree_with_the_augmented_model(foreign, spec, tmp_path)
     assert relative.max() <= 1e-12, f"{spec.folder}/{spec.model}: {batch.tolist()} against {single.tolist()}"
 
 
+@pytest.mark.slow
 def test_on_dpm_both_rewards_share_one_direct_solve(foreign, monkeypatch):
     # PAYNT's dpm mixes slowly (its battery runs out with probability 0.01 a step): the sweeps
     # give up early and both expected rewards (power, lostH: one target) are solved with one

@@ -96,6 +96,7 @@ def test_only_step_bounded_rewards_are_walked():
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("workers", "whole"), [(1, False), (2, False), (1, True), (2, True)])
 def test_branch_and_bound_over_walked_boxes_finds_the_enumerated_front(workers, whole):
     fam = family("tas", ["rounds=6"], width=4)

@@ -11,6 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 PROBE = Path(__file__).with_name("import_probe.py")
 
 
@@ -32,6 +34,7 @@ def test_importing_every_module_changes_no_global_state():
     assert found["changed"] == []
 
 
+@pytest.mark.slow
 def test_the_probe_sees_a_module_that_meddles(tmp_path):
     (tmp_path / "meddler.py").write_text(
         "import warnings, matplotlib\n"

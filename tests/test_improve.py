@@ -8,9 +8,9 @@ from __future__ import annotations
 import attrs
 import numpy as np
 import pytest
-from conftest import toy_system
 from test_quotient import breaking_system, synchronised_system
 
+from conftest import toy_system
 from parley_core import metrics
 from parley_core.evaluate.cache import CachingEvaluator
 from parley_core.evaluate.quotient import QuotientEvaluator
@@ -79,6 +79,7 @@ def _indices(family, policies):
     return np.array([[list(d.service.values).index(int(v)) for d, v in zip(family.decisions, row)] for row in policies])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, family", FAMILIES, ids=[name for name, _ in FAMILIES])
 def test_the_backward_pass_gives_the_policys_own_values(name, family):
     with QuotientEvaluator(family, workers=1) as evaluator:
@@ -92,6 +93,7 @@ def test_the_backward_pass_gives_the_policys_own_values(name, family):
         np.testing.assert_allclose(own * improver.signs, value, rtol=1e-9, atol=2e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, family", FAMILIES, ids=[name for name, _ in FAMILIES])
 def test_scores_on_threads_are_those_computed_one_at_a_time(name, family):
     with QuotientEvaluator(family, workers=1) as evaluator:

@@ -33,6 +33,7 @@ def outputs(notebook, kind: str) -> list[str]:
     return found
 
 
+@pytest.mark.slow
 def test_the_robot_grid_notebook_runs(tmp_path):
     notebook = execute("robot_grid.ipynb", tmp_path)
     pages = outputs(notebook, "text/html")
@@ -42,6 +43,7 @@ def test_the_robot_grid_notebook_runs(tmp_path):
     assert (tmp_path / "runs" / "notebook-robot_grid" / "controller.json").is_file()
 
 
+@pytest.mark.slow
 def test_the_own_model_notebook_runs(tmp_path):
     notebook = execute("own_model.ipynb", tmp_path)
     assert (tmp_path / "sensor.prism").is_file() and (tmp_path / "runs" / "sensor" / "report.html").is_file()

@@ -110,6 +110,7 @@ def _install_example(site: Path) -> dict[str, str]:
     return env
 
 
+@pytest.mark.slow
 def test_an_installed_plugin_is_found_through_its_entry_point_and_runs(tmp_path):
     env = _install_example(tmp_path)
     listed = subprocess.run(

@@ -5,6 +5,7 @@ polish (no quotient, constraints, a family it has exhausted)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from test_improve import two_stages
 
 from parley_core import metrics
@@ -145,6 +146,7 @@ def test_polishing_stops_when_the_fronts_neighbours_are_all_evaluated():
     assert result.polished is not None and result.polished.expanded > 0
 
 
+@pytest.mark.slow
 def test_polishing_keeps_to_the_searchs_time_limit(small_robot):
     family, evaluator = small_robot
     result = search(family, evaluator, SearchSettings(algorithm="polished", generations=None, time_limit=1.0, seed=3))

@@ -8,6 +8,8 @@ import sys
 import textwrap
 import time
 
+import pytest
+
 from parley_core.evaluate.pool import spawn_pool, stop_pool
 
 
@@ -32,6 +34,7 @@ def _wait_gone(pids: list[int], seconds: float = 10.0) -> bool:
     return False
 
 
+@pytest.mark.slow
 def test_workers_end_when_their_parent_is_killed(tmp_path):
     script = tmp_path / "parent.py"
     script.write_text(
@@ -58,6 +61,7 @@ def test_workers_end_when_their_parent_is_killed(tmp_path):
     assert _wait_gone(pids), "workers outlived their parent"
 
 
+@pytest.mark.slow
 def test_an_abort_ends_busy_workers_at_once():
     pool = spawn_pool(2)
     for _ in range(2):

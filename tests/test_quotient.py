@@ -7,10 +7,10 @@ import itertools
 
 import numpy as np
 import pytest
-from conftest import TOY, toy_system
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from conftest import TOY, toy_system
 from parley_core.evaluate.quotient import QuotientEvaluator
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.family.augment import augment
@@ -104,6 +104,7 @@ def test_unsupported_properties_fall_back_to_storm():
         assert np.abs(quotient.evaluate(policies) - storm.evaluate(policies)).max() <= 1e-9
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("size", "seed", "p"), [(6, 1, 0.02), (8, 4, 0.05), (10, 0, 0.01)])
 def test_robot_random_policies_and_baselines_agree_with_storm(size, seed, p):
     family = augment(ROBOT.build(ROBOT.options([f"size={size}", f"seed={seed}", f"p={p}"])))
@@ -115,6 +116,7 @@ def test_robot_random_policies_and_baselines_agree_with_storm(size, seed, p):
         assert np.abs(quotient.evaluate(policies) - storm.evaluate(policies)).max() <= 1e-9
 
 
+@pytest.mark.slow
 def test_worker_processes_give_bit_identical_values():
     family = augment(ROBOT.build(ROBOT.options(["size=5", "seed=2"])))
     policies = np.random.default_rng(0).integers(1, 11, size=(70, len(family.decisions)))
@@ -203,6 +205,7 @@ endrewards
 """
 
 
+@pytest.mark.slow
 def test_the_deadlock_label_is_each_policys_own():
     # at x=c no command is enabled: the policy's DTMC labels that state "deadlock", which
     # the quotient (where another value of c enables a command there) does not

@@ -42,6 +42,7 @@ def offline(html: str) -> bool:
     return not re.search(r"<(script|link|img)[^>]+(src|href)=[\"']?(https?:)?//", html)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_run_report_in_a_browser(case, browser, tmp_path):
     run = parley.run(case, seed=2, **SMALL, out=tmp_path / case, options=CASES[case])
@@ -103,6 +104,7 @@ def test_run_report_in_a_browser(case, browser, tmp_path):
     assert page.problems == []
 
 
+@pytest.mark.slow
 def test_campaign_report_in_a_browser(browser, tmp_path):
     from typer.testing import CliRunner
 
@@ -164,6 +166,7 @@ def test_stable_ids_renumber_bokeh_ids_but_not_data():
     assert "00000000-0000-4000-8000-000000000001" in stable
 
 
+@pytest.mark.slow
 def test_a_run_report_shows_inline_in_jupyter(tmp_path):
     run = parley.run("robot_grid", seed=2, **SMALL, out=tmp_path / "r", options=CASES["robot_grid"])
     inline = run.report._repr_html_()
@@ -172,6 +175,7 @@ def test_a_run_report_shows_inline_in_jupyter(tmp_path):
     assert "front-points" in run.report.html()
 
 
+@pytest.mark.slow
 def test_parley_report_writes_the_page_again(tmp_path):
     from typer.testing import CliRunner
 

@@ -15,9 +15,10 @@ from parley_core.errors import OptionError
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.family.prepare import prepare, prepare_scenarios
 from parley_core.family.scenarios import ScenarioSet
-from parley_core.family.usermodel import override_constants
 from parley_core.pipeline import run
 from parley_core.plugin.manager import load_registry
+from parley_core.prism.program import parse_program
+from parley_core.prism.rewrite import override_constants
 from parley_core.robust import worst
 from parley_core.search import SearchSettings
 
@@ -183,7 +184,18 @@ def test_constants_of_a_users_model_are_overridden():
     text = (PUMP / "pump.prism").read_text()
     changed = override_constants(text, {"wear_high": "0.2", "load_change": "0.05"})
     assert "const double wear_high = 0.2;" in changed and "const double load_change = 0.05;" in changed
-    assert changed.count("wear_high = ") == 1 and "// ... at high load" in changed
+    assert changed.count("wear_high = ") == 1
+    # the rest of the program as it was: the same constants, modules and rewards, as Storm reads them
+    before, after = parse_program(text), parse_program(changed)
+
+    def values(program):
+        return {c.name: c.definition.evaluate_as_double() for c in program.constants}
+
+    # Storm prints the other doubles as exact fractions (0.04 as 1/25), which it reads back to the ulp
+    assert values(after) == pytest.approx({**values(before), "wear_high": 0.2, "load_change": 0.05}, rel=1e-15)
+    assert [str(m) for m in after.modules] == [str(m) for m in before.modules]
+    assert [r.name for r in after.reward_models] == [r.name for r in before.reward_models]
+    assert override_constants(text, {}) == text
     with pytest.raises(OptionError, match="declares no constant"):
         override_constants(text, {"nope": "1"})
     with pytest.raises(OptionError, match="decision constant"):

@@ -175,6 +175,7 @@ def test_local_search_children_are_new_one_step_neighbours_of_the_front(small_ro
         assert any(masks[i][np.flatnonzero(differences[i])[0]] for i in near)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algorithm", sorted(ALGORITHMS))
 def test_every_configuration_ends_on_a_family_smaller_than_its_budget(algorithm):
     """Nine policies and a budget of 50: the search evaluates each once and stops (it used

@@ -11,11 +11,13 @@ from parley_core.testing import family, values
 from parley_core.testing.conformance import ConformanceError, check_baselines, check_model, prepare_quick
 
 
+@pytest.mark.slow
 def test_one_option_runs_the_shipped_suite_on_an_installed_case_study(pytester):
     result = pytester.runpytest_subprocess("--parley-case", "tas", "-p", "no:cacheprovider")
     result.assert_outcomes(passed=4)
 
 
+@pytest.mark.slow
 def test_one_class_runs_the_suite_in_a_plugins_own_tests(pytester):
     pytester.makepyfile(
         test_mine="""

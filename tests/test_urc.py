@@ -47,6 +47,7 @@ def front(run_dir):
         return {row["policy"]: (float(row["success"]), float(row["cost"])) for row in csv.DictReader(handle)}
 
 
+@pytest.mark.slow
 def test_select_the_cheapest_policy_meeting_a_constraint(run_dir, tmp_path):
     values = front(run_dir)
     result = invoke(

@@ -7,11 +7,11 @@ import json
 
 import pytest
 import stormpy
-from conftest import TOY, storm_values
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
+from conftest import TOY, storm_values
 from parley_core.cli import app
 
 runner = CliRunner()
@@ -318,6 +318,7 @@ MUTATIONS = [
 ]
 
 
+@pytest.mark.slow
 @settings(
     max_examples=60,
     deadline=None,

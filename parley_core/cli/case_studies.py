@@ -8,6 +8,7 @@ from rich.table import Table
 from parley_core.cli.app import app
 from parley_core.cli.common import case_study, registry, user_errors
 from parley_core.cli.options import CaseArgument
+from parley_core.plugin.options import as_text
 
 
 @app.command("list")
@@ -37,5 +38,10 @@ def options_command(case: CaseArgument) -> None:
             kind = f.type.__name__
         else:
             kind = str(f.type).replace("pathlib.", "").replace("Path", "path")
-        table.add_row(f.name, kind, str(f.default), f.metadata.get("help", ""))
+        table.add_row(
+            f.name,
+            kind,
+            as_text(f.default) if isinstance(f.default, tuple) else str(f.default),
+            f.metadata.get("help", ""),
+        )
     Console().print(table)

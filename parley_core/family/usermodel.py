@@ -15,8 +15,6 @@ Every problem is a ParleyError with one line saying what to do.
 
 from __future__ import annotations
 
-import math
-import re
 import signal
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -146,7 +144,7 @@ def system_from_file(
         raise OptionError("give at least one --decision NAME=LOW..HIGH (the constant that sets when a service runs)")
     services = [d if isinstance(d, Service) else parse_decision(d) for d in decisions]
     if define:
-        text = override_constants(text, define, services=[s.constant for s in services])
+        text = rewrite.override_constants(text, define, services=[s.constant for s in services])
     observation = parse_observation(observe)
     program = prism.parse_program(text, origin=f"model {path}")
     constants = {c.name: c for c in program.constants}
@@ -215,60 +213,6 @@ def system_from_file(
     # the lowest values are built above; the quotient holds every value (and is what parley builds next)
     _check_storm_survives(path, lambda: _quotient_program(system), {})
     return system
-
-
-_CONSTANT = r"\bconst\s+(?:(int|double|bool)\s+)?{name}\s*(=[^;]*)?;"
-
-
-def _blank_comments(text: str) -> str:
-    """``text`` with every ``//`` comment replaced by spaces (positions kept)."""
-    return re.sub(r"//[^\n]*", lambda m: " " * len(m.group()), text)
-
-
-def override_constants(
-    text: str, values: Mapping[str, str], services: Sequence[str] = (), option: str = "--scenarios"
-) -> str:
-    """A PRISM text with each named constant declared with the given value: ``const double
-    p = 0.02;`` for ``p=0.02`` (whether the model defines ``p`` or leaves it undefined).
-    ``option`` names the command-line option the values came from, in error messages."""
-    bare = _blank_comments(text)
-    program = prism.parse_program(text, origin="model")
-    declared = {c.name: c for c in program.constants}
-    for name, value in values.items():
-        if name in services:
-            raise OptionError(f"{option} {name}=...: {name} is a decision constant; the URC chooses it")
-        if name not in declared:
-            names = ", ".join(sorted(n for n in declared if n not in services)) or "none"
-            raise OptionError(f"{option} {name}=...: the model declares no constant {name}; its constants: {names}")
-        constant = declared[name]
-        kind = "bool" if constant.type.is_boolean else "int" if constant.type.is_integer else "double"
-        checked = _constant_value(name, value, kind, option)
-        match = re.search(_CONSTANT.format(name=re.escape(name)), bare)
-        if match is None:
-            raise OptionError(f"{option} {name}=...: parley cannot find the declaration of {name} in the model")
-        declaration = f"const {kind} {name} = {checked};"
-        text = text[: match.start()] + declaration + text[match.end() :]
-        bare = bare[: match.start()] + declaration + bare[match.end() :]
-    return text
-
-
-def _constant_value(name: str, value: str, kind: str, option: str) -> str:
-    value = value.strip()
-    if kind == "bool":
-        if value not in ("true", "false"):
-            raise OptionError(f"{option} {name}={value}: {name} is a bool constant; give true or false")
-        return value
-    try:
-        number = float(value)
-    except ValueError:
-        raise OptionError(f"{option} {name}={value}: {name} is a {kind} constant; give a number") from None
-    if kind == "int":
-        if number != int(number):
-            raise OptionError(f"{option} {name}={value}: {name} is an int constant; give an integer")
-        return str(int(number))
-    if not math.isfinite(number):
-        raise OptionError(f"{option} {name}={value}: give a finite number")
-    return repr(number)
 
 
 def _quotient_program(system: SystemModel):

@@ -11,7 +11,7 @@ from attrs import field, frozen, validators
 
 from parley_core.errors import OptionError
 from parley_core.model import SystemModel
-from parley_core.plugin.options import convert, parse_assignments
+from parley_core.plugin.options import as_text, convert, parse_assignments
 from parley_core.plugin.policymap import PolicyMap
 from parley_core.plugin.simulator import Simulator
 from parley_core.progress import Reporter
@@ -114,7 +114,7 @@ class CaseStudy:
     def options(self, assignments: Iterable[str] = (), **overrides: Any) -> Any:
         """Options from ``KEY=VALUE`` strings (as given to ``--set``), over the defaults."""
         values = parse_assignments(assignments)
-        values.update({k: str(v) for k, v in overrides.items()})
+        values.update({k: as_text(v) for k, v in overrides.items()})
         return self.options_from(values)
 
     def options_from(self, values: Mapping[str, str]) -> Any:
@@ -137,4 +137,4 @@ class CaseStudy:
     def options_from_json(self, values: Mapping[str, Any]) -> Any:
         """Options from the JSON form :func:`parley_core.plugin.options.options_as_dict` writes
         (a run's summary.json, a campaign store)."""
-        return self.options_from({k: "none" if v is None else str(v) for k, v in values.items()})
+        return self.options_from({k: as_text(v) for k, v in values.items()})

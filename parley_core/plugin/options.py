@@ -2,8 +2,11 @@
 
 A case study's options are a frozen attrs class whose fields all have defaults and a help
 text. :func:`option`, :func:`positive` and :func:`probability` are the plugin kit's field
-helpers; ``--set KEY=VALUE`` strings are converted by the fields' type annotations (int,
-float, str, bool, Path, and ``X | None``).
+helpers; ``--set KEY=VALUE`` strings are converted by the fields' type annotations: int,
+float, str, bool, Path, ``X | None``, and tuples of numbers: ``tuple[int, int]`` from ``1:0``,
+``tuple[float, float]`` from ``0.7:1.0``, ``tuple[tuple[int, int], ...]`` from
+``0:3,0:4,1:3`` (a cell list), ``tuple[int, ...]`` from ``1:2:3``. A tuple option is written
+back (summary.json, a campaign store) in the same text form, so that it reads as it was given.
 """
 
 from __future__ import annotations
@@ -22,11 +25,14 @@ from parley_core.errors import OptionError
 Validator = Callable[[Any, attrs.Attribute, Any], None]
 
 
-def option(default: Any, help: str, *checks: Validator | list[Validator]) -> Any:
-    """An option field: its default, its help text (shown by ``parley options``) and
-    validators (each given alone or in a list)."""
+def option(
+    default: Any, help: str, *checks: Validator | list[Validator], converter: Callable[[Any], Any] | None = None
+) -> Any:
+    """An option field: its default, its help text (shown by ``parley options``), validators
+    (each given alone or in a list) and an optional ``converter`` applied to the value before
+    they run (``converter=float`` lets a float option take an int from Python)."""
     flat = [v for check in checks for v in (check if isinstance(check, list) else [check])]
-    return attrs.field(default=default, validator=flat or None, metadata={"help": help})
+    return attrs.field(default=default, validator=flat or None, converter=converter, metadata={"help": help})
 
 
 def positive(_instance: Any, attribute: attrs.Attribute, value: Any) -> None:
@@ -54,8 +60,26 @@ def parse_assignments(assignments: Iterable[str]) -> dict[str, str]:
 
 
 def options_as_dict(options: Any) -> dict[str, Any]:
-    """Options as JSON-friendly values (paths as strings)."""
-    return {k: (str(v) if isinstance(v, Path) else v) for k, v in attrs.asdict(options, recurse=False).items()}
+    """Options as JSON-friendly values (paths and tuples as their ``--set`` text)."""
+    return {
+        k: (as_text(v) if isinstance(v, (Path, tuple)) else v) for k, v in attrs.asdict(options, recurse=False).items()
+    }
+
+
+def as_text(value: Any) -> str:
+    """An option value as ``--set`` takes it: ``(1, 0)`` as ``1:0``, ``((0, 3), (0, 4))`` as
+    ``0:3,0:4``, ``None`` as ``none``."""
+    if value is None:
+        return "none"
+    if isinstance(value, tuple):
+        if value and all(isinstance(v, tuple) for v in value):
+            return ",".join(as_text(v) for v in value)
+        return ":".join(_number_text(v) for v in value)
+    return str(value)
+
+
+def _number_text(value: Any) -> str:
+    return repr(value) if isinstance(value, float) else str(value)
 
 
 def convert(case: str, key: str, text: str, annotation: Any) -> Any:
@@ -69,8 +93,21 @@ def convert(case: str, key: str, text: str, annotation: Any) -> Any:
             return _convert_one(text, kind)
         except ValueError:
             continue
-    names = " or ".join("none" if c is type(None) else getattr(c, "__name__", str(c)) for c in choices)
+    names = " or ".join(_describe(c) for c in choices)
     raise OptionError(f"option {key}={text!r} for {case}: expected {names}")
+
+
+def _describe(kind: Any) -> str:
+    if kind is type(None):
+        return "none"
+    if typing.get_origin(kind) is tuple:
+        args = typing.get_args(kind)
+        if len(args) == 2 and args[1] is Ellipsis and typing.get_origin(args[0]) is tuple:
+            return f"a list X:Y,X:Y,... of {_describe(args[0])}"
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"values A:B:... of {_describe(args[0])}"
+        return ":".join(_describe(a) for a in args)
+    return getattr(kind, "__name__", str(kind))
 
 
 def _alternatives(annotation: Any) -> tuple[Any, ...]:
@@ -97,4 +134,20 @@ def _convert_one(text: str, kind: Any) -> Any:
         return Path(text).expanduser()
     if kind is str:
         return text
+    if typing.get_origin(kind) is tuple:
+        return _convert_tuple(text, typing.get_args(kind))
     raise ValueError(f"unsupported option type {kind!r}")
+
+
+def _convert_tuple(text: str, args: tuple[Any, ...]) -> tuple[Any, ...]:
+    """``1:0`` for ``(int, int)``; ``0:3,0:4`` for ``(tuple[int, int], ...)``; ``1:2:3`` for ``(int, ...)``."""
+    if len(args) == 2 and args[1] is Ellipsis:
+        inner = args[0]
+        if typing.get_origin(inner) is tuple:
+            items = [item.strip() for item in text.split(",") if item.strip()]
+            return tuple(_convert_one(item, inner) for item in items)
+        return tuple(_convert_one(part.strip(), inner) for part in text.split(":") if part.strip())
+    parts = [part.strip() for part in text.split(":")]
+    if len(parts) != len(args):
+        raise ValueError(text)
+    return tuple(_convert_one(part, kind) for part, kind in zip(parts, args))

@@ -220,9 +220,11 @@ def command_uses(command, variables: set) -> bool:
 
 
 def constant_declaration(constant) -> str:
-    """A constant's declaration exactly as Storm prints it."""
+    """A constant's declaration exactly as Storm prints it (a double's type, rational inside
+    Storm, printed as ``double``)."""
     value = f" = {constant.definition}" if constant.defined else ""
-    return f"const {constant.type} {constant.name}{value};"
+    kind = "bool" if constant.type.is_boolean else "int" if constant.type.is_integer else "double"
+    return f"const {kind} {constant.name}{value};"
 
 
 def splice(

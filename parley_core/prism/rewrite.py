@@ -11,13 +11,14 @@ by the value, the copy tagged with it). :func:`copy_service_commands` does the w
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from attrs import field, frozen
 from stormpy.developer.storage import Expression, PrismProgram
 
-from parley_core.errors import ModelError
+from parley_core.errors import ModelError, OptionError
 from parley_core.model import Service, SystemModel
 from parley_core.prism import program as prism
 from parley_core.prism.writer import RewardItem, Rewards, command_line
@@ -221,3 +222,46 @@ def observation_rewards(program: PrismProgram, system: SystemModel) -> Rewards:
         terms.append(f"{value} * {stride}")
         stride *= len(domain)
     return Rewards(name=OBSERVATION_REWARD, items=[RewardItem(guard="true", value=" + ".join(terms) or "0")])
+
+
+def override_constants(
+    text: str, values: Mapping[str, str], services: Sequence[str] = (), option: str = "--scenarios"
+) -> str:
+    """A PRISM program (Storm's printing of ``text``) with each named constant declared with
+    the given value: ``const double p = 0.02;`` for ``p=0.02``, whether the model defines
+    ``p`` or leaves it undefined. ``option`` names the command-line option the values came
+    from, in error messages; ``services`` are the decision constants, which a URC chooses."""
+    program = prism.parse_program(text, origin="model")
+    declared = {c.name: c for c in program.constants}
+    declarations = {}
+    for name, value in values.items():
+        if name in services:
+            raise OptionError(f"{option} {name}=...: {name} is a decision constant; the URC chooses it")
+        if name not in declared:
+            names = ", ".join(sorted(n for n in declared if n not in services)) or "none"
+            raise OptionError(f"{option} {name}=...: the model declares no constant {name}; its constants: {names}")
+        constant = declared[name]
+        kind = "bool" if constant.type.is_boolean else "int" if constant.type.is_integer else "double"
+        declarations[name] = f"const {kind} {name} = {_constant_value(name, value, kind, option)};"
+    if not declarations:
+        return text
+    return prism.splice(program, constants=declarations)
+
+
+def _constant_value(name: str, value: str, kind: str, option: str) -> str:
+    value = value.strip()
+    if kind == "bool":
+        if value not in ("true", "false"):
+            raise OptionError(f"{option} {name}={value}: {name} is a bool constant; give true or false")
+        return value
+    try:
+        number = float(value)
+    except ValueError:
+        raise OptionError(f"{option} {name}={value}: {name} is a {kind} constant; give a number") from None
+    if kind == "int":
+        if number != int(number):
+            raise OptionError(f"{option} {name}={value}: {name} is an int constant; give an integer")
+        return str(int(number))
+    if not math.isfinite(number):
+        raise OptionError(f"{option} {name}={value}: give a finite number")
+    return repr(number)

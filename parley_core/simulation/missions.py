@@ -17,9 +17,9 @@ from attrs import field, frozen
 
 from parley_core.errors import ModelError, OptionError
 from parley_core.evaluate.storm import check_values, reference_environment
-from parley_core.family.usermodel import override_constants
 from parley_core.model import Family
 from parley_core.prism import program as prism
+from parley_core.prism.rewrite import override_constants
 from parley_core.quotient.mdp import read_umb
 from parley_core.simulation.storm import simulation_plans
 from parley_core.urc.controller import URC

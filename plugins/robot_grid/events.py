@@ -15,7 +15,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from parley_core.urc.events import EventModel
+from parley_core import EventModel
 
 
 def localisations(before: Mapping[str, np.ndarray], after: Mapping[str, np.ndarray]):

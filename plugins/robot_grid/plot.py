@@ -11,7 +11,7 @@ from matplotlib.collections import PatchCollection
 from matplotlib.colors import ListedColormap, Normalize
 from matplotlib.patches import Rectangle
 
-from parley_core.views.plotting import figure, save
+from parley_core import figure, save
 from parley_plugins.robot_grid.grid import Grid
 from parley_plugins.robot_grid.planner import MOVES
 

@@ -8,7 +8,7 @@ from matplotlib import colormaps
 from matplotlib.colors import Normalize
 from matplotlib.patches import Rectangle
 
-from parley_core.views.plotting import figure, save
+from parley_core import figure, save
 from parley_plugins.tas.generator import Scenario
 
 

@@ -28,6 +28,7 @@ from parley_core import (
     OptionError,
     PolicyMap,
     PolicyTable,
+    Reporter,
     Service,
     Simulator,
     SystemModel,
@@ -36,15 +37,14 @@ from parley_core import (
     positive,
     probability,
 )
-from parley_core.progress import Reporter
 from parley_plugins.turtlebot import closed_loop, published
 from parley_plugins.turtlebot.generator import prism_model
 from parley_plugins.turtlebot.kinematics import simulate
 from parley_plugins.turtlebot.physics import Physics
 from parley_plugins.turtlebot.sampling import Sampling, cached, counts, motions_of, progress_units
-from parley_plugins.turtlebot.world import World, check, complete, parse_cells, shortest_moves
+from parley_plugins.turtlebot.world import World, check, complete, shortest_moves
 
-PAPER_OBSTACLES = "0:3,0:4,0:5,1:3,2:3,3:3,4:0,4:1,5:1,4:4,4:6,5:6"
+PAPER_OBSTACLES = ((0, 3), (0, 4), (0, 5), (1, 3), (2, 3), (3, 3), (4, 0), (4, 1), (5, 1), (4, 4), (4, 6), (5, 6))
 """The cells where the paper's sampled motions crash (and which its model gives no motions)."""
 
 
@@ -65,9 +65,9 @@ class TurtlebotOptions:
     )
     repair: bool = option(True, "with model=: read its south moves as meant (the file sends them to the top row)")
     size: int = option(7, "cells per side (simulated motions)", validators.ge(2))
-    start: str = option("1:0", "start cell X:Y (simulated motions)")
-    target: str = option("3:5", "target cell X:Y (simulated motions)")
-    obstacles: str = option(PAPER_OBSTACLES, "obstacle cells X:Y,X:Y,... (simulated motions)")
+    start: tuple[int, int] = option((1, 0), "start cell X:Y (simulated motions)")
+    target: tuple[int, int] = option((3, 5), "target cell X:Y (simulated motions)")
+    obstacles: tuple[tuple[int, int], ...] = option(PAPER_OBSTACLES, "obstacle cells X:Y,X:Y,... (simulated motions)")
     left_wheel: float = option(0.99, "left wheel power relative to the right one", _fraction)
     margin: float = option(
         0.3,
@@ -81,7 +81,7 @@ class TurtlebotOptions:
         0.05, "kinematic: error of a move's length, relative standard deviation", validators.ge(0.0)
     )
     wheel_noise: float = option(0.01, "mujoco: each wheel's speed error in a move, relative", validators.ge(0.0))
-    friction: str = option("0.7:1.0", "mujoco: range LOW:HIGH of the floor's friction, drawn per move")
+    friction: tuple[float, float] = option((0.7, 1.0), "mujoco: range LOW:HIGH of the floor's friction, drawn per move")
     speed: float = option(0.22, "mujoco: driving speed, m/s (the Waffle's maximum is 0.26)", positive)
     timestep: float = option(0.025, "mujoco: seconds per physics step", positive)
     heading_memory: bool = option(
@@ -140,9 +140,7 @@ def world_of(options: TurtlebotOptions) -> World:
                 f"option {changed[0]} shapes simulated motions, but model= gives the paper's; drop one of them"
             )
         return check(published.load(options.model, repair=options.repair))
-    start = _one_cell(options.start, "start")
-    target = _one_cell(options.target, "target")
-    obstacles = parse_cells(options.obstacles, "option obstacles")
+    start, target, obstacles = options.start, options.target, frozenset(options.obstacles)
     world = World(
         size=options.size,
         start=start,
@@ -185,13 +183,11 @@ def world_of(options: TurtlebotOptions) -> World:
 
 def physics_of(options: TurtlebotOptions) -> Physics:
     """The MuJoCo robot's physics that ``options`` set."""
-    low, sep, high = options.friction.partition(":")
-    try:
-        friction = (float(low), float(high if sep else low))
-    except ValueError:
-        friction = (-1.0, -1.0)
+    friction = options.friction
     if not 0 < friction[0] <= friction[1]:
-        raise OptionError(f"option friction={options.friction!r}: give LOW:HIGH with 0 < LOW <= HIGH, e.g. 0.7:1.0")
+        raise OptionError(
+            f"option friction={friction[0]:g}:{friction[1]:g}: give LOW:HIGH with 0 < LOW <= HIGH, e.g. 0.7:1.0"
+        )
     return Physics(
         left_wheel=options.left_wheel,
         speed=options.speed,
@@ -205,7 +201,7 @@ def sampling_of(options: TurtlebotOptions) -> Sampling:
     """What the MuJoCo motion table of ``options`` depends on."""
     return Sampling(
         size=options.size,
-        obstacles=tuple(sorted(parse_cells(options.obstacles, "option obstacles"))),
+        obstacles=tuple(sorted(set(options.obstacles))),
         physics=physics_of(options),
         heading_noise=options.heading_noise,
         margin=options.margin,
@@ -223,13 +219,6 @@ def warm_up(options: TurtlebotOptions, reporter: Reporter) -> None:
     if cached(sampling) is None:
         reporter.stage("sample motions in MuJoCo", progress_units(sampling))
         counts(sampling, reporter.advance)
-
-
-def _one_cell(text: str, name: str) -> tuple[int, int]:
-    cells = parse_cells(text, f"option {name}")
-    if len(cells) != 1:
-        raise OptionError(f"option {name}={text!r}: give one cell X:Y, e.g. {name}=1:0")
-    return next(iter(cells))
 
 
 def build(options: TurtlebotOptions) -> SystemModel:

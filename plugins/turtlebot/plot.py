@@ -13,7 +13,7 @@ from matplotlib.cm import ScalarMappable
 from matplotlib.colors import Normalize
 from matplotlib.patches import Polygon, Rectangle
 
-from parley_core.views.plotting import figure, save
+from parley_core import figure, save
 from parley_plugins.turtlebot.world import STEP, World
 
 # Triangle corners (relative to the cell center) and label offset, per heading number.

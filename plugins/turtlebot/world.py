@@ -16,7 +16,7 @@ from collections.abc import Mapping
 import numpy as np
 from attrs import field, frozen
 
-from parley_core.errors import OptionError
+from parley_core import OptionError
 from parley_plugins import localisation
 
 HEADINGS = ("north", "east", "south", "west")

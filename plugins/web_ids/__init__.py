@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from attrs import field, frozen, validators
+from attrs import frozen, validators
 
 from parley_core import (
     Baseline,
@@ -41,29 +41,13 @@ class WebIdsOptions:
         50, f"rounds (hours) both objectives look at; a round is {STEPS_PER_ROUND} DTMC steps", validators.ge(1)
     )
     start_hour: int = option(0, "hour of the day at the start (0..23)", validators.ge(0), validators.le(23))
-    attack_a: float = field(
-        default=0.3,
-        converter=float,
-        validator=probability,
-        metadata={"help": "probability per round that a clean A is compromised"},
+    attack_a: float = option(0.3, "probability per round that a clean A is compromised", probability, converter=float)
+    attack_b: float = option(
+        0.3, "probability per round that B is compromised through a compromised A", probability, converter=float
     )
-    attack_b: float = field(
-        default=0.3,
-        converter=float,
-        validator=probability,
-        metadata={"help": "probability per round that B is compromised through a compromised A"},
-    )
-    stale: float = field(
-        default=0.3,
-        converter=float,
-        validator=probability,
-        metadata={"help": "probability per round that the IDS's rules are stale"},
-    )
-    ids_error: float = field(
-        default=1.0,
-        converter=float,
-        validator=probability,
-        metadata={"help": "weight of the published IDS's errors: 1 the published IDS, 0 a perfect one"},
+    stale: float = option(0.3, "probability per round that the IDS's rules are stale", probability, converter=float)
+    ids_error: float = option(
+        1.0, "weight of the published IDS's errors: 1 the published IDS, 0 a perfect one", probability, converter=float
     )
     restore_at: int = option(
         3,
@@ -71,21 +55,19 @@ class WebIdsOptions:
         validators.ge(0),
         validators.le(KNOWN),
     )
-    scan_cost: float = field(default=25.0, converter=float, validator=_cost, metadata={"help": "cost of one scan of A"})
-    breach_cost: float = field(
-        default=500.0, converter=float, validator=_cost, metadata={"help": "cost of a round with B compromised"}
-    )
-    scan_fn: float = field(
-        default=0.0,
+    scan_cost: float = option(25.0, "cost of one scan of A", _cost, converter=float)
+    breach_cost: float = option(500.0, "cost of a round with B compromised", _cost, converter=float)
+    scan_fn: float = option(
+        0.0,
+        "false-negative rate of the scan: probability that it reports a compromised A clean",
+        probability,
         converter=float,
-        validator=probability,
-        metadata={"help": "false-negative rate of the scan: probability that it reports a compromised A clean"},
     )
-    scan_fp: float = field(
-        default=0.0,
+    scan_fp: float = option(
+        0.0,
+        "false-positive rate of the scan: probability that it reports a clean A compromised",
+        probability,
         converter=float,
-        validator=probability,
-        metadata={"help": "false-positive rate of the scan: probability that it reports a clean A compromised"},
     )
 
 

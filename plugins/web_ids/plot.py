@@ -10,7 +10,7 @@ from matplotlib.cm import ScalarMappable
 from matplotlib.colors import Normalize
 from matplotlib.patches import Rectangle
 
-from parley_core.views.plotting import figure, save
+from parley_core import figure, save
 from parley_plugins.web_ids.generator import LEVELS, MAX_THRESHOLD, RESTORE_A
 
 RULES = {1: "fresh rules", 0: "stale rules"}

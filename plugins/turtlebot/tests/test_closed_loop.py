@@ -56,6 +56,7 @@ def test_without_noise_the_closed_loop_is_what_storm_proves(left_wheel, horizon,
         np.testing.assert_allclose(episodes.values["energy"], [storm[1]] * 3, rtol=0, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_parley_validate_writes_intervals_next_to_storms_values(tmp_path, monkeypatch):
     from typer.testing import CliRunner
 

@@ -58,6 +58,7 @@ def test_driving_into_an_obstacle_is_a_crash_and_over_the_border_is_out():
     assert 6.0 - 0.10 < moves.poses[0, 0] < 6.0 - 0.05
 
 
+@pytest.mark.slow
 def test_the_footprint_test_agrees_with_mujocos_contacts():
     """The table's crash test (the chassis box swept along a path driven in an empty world)
     against the touch sensor of the world with the obstacles, for the same moves (controls
@@ -82,6 +83,7 @@ def test_the_footprint_test_agrees_with_mujocos_contacts():
     assert crashes >= 20  # the comparison is about crashes, not only free moves
 
 
+@pytest.mark.slow
 def test_the_sampled_table_is_a_distribution_per_move_and_the_same_for_the_same_seed(tmp_path, monkeypatch):
     monkeypatch.setenv("PARLEY_CACHE", str(tmp_path))
     sampling = Sampling(size=3, obstacles=((1, 1),), physics=Physics(), samples=30, seed=4)
