@@ -20,9 +20,10 @@ from parley_core.cli import app
 from parley_core.family.prepare import make_family
 from parley_core.family.usermodel import system_from_file
 from parley_core.model import DecisionKind, Direction, Objective, Service
-from parley_core.optimality.belief import belief_ideal, belief_query
-from parley_core.optimality.bound import ideal_point
+from parley_core.optimality.belief import belief_ideal
+from parley_core.optimality.bound import Query, ideal_point
 from parley_core.quotient.coloring import build_quotient
+from parley_core.quotient.compile import KernelKind
 from parley_core.testing import family, values
 
 # a coin the URC cannot see: at o=1 it must guess the side, which the true state knows
@@ -60,10 +61,21 @@ def _guess():
 
 
 def test_queries_storms_belief_exploration_takes():
-    assert belief_query('Pmax=? [true U "psi0"]') == 'Pmax=? [F "psi0"]'
-    assert belief_query('R{"r1"}min=? [F "psi1"]') == 'R{"r1"}min=? [F "psi1"]'
-    for other in ('Pmax=? ["phi0" U "psi0"]', 'Pmin=? [true U<=4 "psi0"]', 'R{"r0"}min=? [C<=100]', None):
-        assert belief_query(other) is None
+    reach = Query(kind=KernelKind.UNTIL, best="max", right='"psi0"')
+    assert reach.text == 'Pmax=? [true U "psi0"]' and reach.eventually() == 'Pmax=? [F "psi0"]'
+    to_target = Query(kind=KernelKind.REACH_REWARD, best="min", right='"psi1"', reward="r1")
+    assert to_target.eventually() == to_target.text == 'R{"r1"}min=? [F "psi1"]'
+    others = [
+        Query(kind=KernelKind.UNTIL, best="max", left='"phi0"', right='"psi0"'),
+        Query(kind=KernelKind.BOUNDED, best="min", right='"psi0"', steps=4),
+        Query(kind=KernelKind.CUMULATIVE, best="min", reward="r0", steps=100),
+    ]
+    assert [q.text for q in others] == [
+        'Pmax=? ["phi0" U "psi0"]',
+        'Pmin=? [true U<=4 "psi0"]',
+        'R{"r0"}min=? [C<=100]',
+    ]
+    assert all(q.eventually() is None for q in others)
 
 
 @pytest.mark.slow

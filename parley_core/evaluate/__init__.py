@@ -73,7 +73,7 @@ class Evaluator(Protocol):
 @runtime_checkable
 class Consulting(Evaluator, Protocol):
     """An evaluator that also says which decisions each policy consulted (those of the
-    valuations its reachable states observe): the search's archive keeps them."""
+    valuations its reachable states observe): the search's cache keeps them."""
 
     def evaluate_consulted(
         self, policies: np.ndarray, progress: Progress | None = None

@@ -1,9 +1,10 @@
 """A memo in front of an evaluator: every policy evaluated once, in the order first seen.
 
-The search's archive: the front is taken from everything evaluated, not only from the
-last population, and no policy is evaluated twice. Where the evaluator can say which
-decisions a policy consults (``evaluate_consulted``, the quotient's), the archive keeps that
-too; elsewhere every decision counts as consulted.
+The search's cache: the front is taken from everything evaluated, not only from the last
+population, and no policy is evaluated twice. Where the evaluator can say which decisions a
+policy consults (a :class:`~parley_core.evaluate.Consulting` one, the quotient's), the cache
+keeps that too; elsewhere every decision counts as consulted. (Branch and bound's archive,
+with its local upper bounds, is :mod:`parley_core.optimality.archive`.)
 """
 
 from __future__ import annotations

@@ -15,8 +15,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from stormpy.developer.storage import PrismModelType
-
 from parley_core.errors import ModelError
 from parley_core.model import Decision, Family, SystemModel, decision_name
 from parley_core.prism import program as prism
@@ -50,7 +48,7 @@ def export(family: Family, form: str) -> str:
 def _augment(system: SystemModel, kept: set[tuple[int, ...]] | None, form: str) -> Family:
     origin = f"the {system.name} model"
     program = prism.parse_program(system.prism, origin=origin)
-    if program.model_type != PrismModelType.DTMC:
+    if not prism.is_dtmc(program):
         raise ModelError(f"{origin} is a {program.model_type.name} but parley needs a DTMC; declare it with `dtmc`")
     if program.has_initial_states_expression:
         raise ModelError(

@@ -25,7 +25,6 @@ stands for that objective, and the bound's details say so.
 from __future__ import annotations
 
 import multiprocessing
-import re
 import time
 
 import numpy as np
@@ -43,20 +42,6 @@ SECONDS = 60.0
 RESOLUTION = 2
 """The discretization's resolution: higher is tighter and costs more (robot_grid 5x5: 0.2 s
 at 2, 1.3 s at 3)."""
-
-_UNTIL = re.compile(r'^(P(?:max|min)=\?) \[true U ("[^"]+")\]$')
-_REWARD = re.compile(r'^R\{"[^"]+"\}(?:max|min)=\? \[F "[^"]+"\]$')
-
-
-def belief_query(query: str | None) -> str | None:
-    """The relaxation's query (:func:`parley_core.optimality.bound.relaxation_queries`) as Storm's
-    belief exploration takes it, or None where it takes no such query."""
-    if query is None:
-        return None
-    until = _UNTIL.match(query)
-    if until:
-        return f"{until.group(1)} [F {until.group(2)}]"
-    return query if _REWARD.match(query) else None
 
 
 def _discretize(relaxation, labels, query: str, resolution: int, connection) -> None:
@@ -115,7 +100,7 @@ def belief_ideal(
     bounds = bounds or RelaxedObjectives(family, quotient)
     ideal = ideal or ideal_point(family, quotient, bounds)
     labels, queries = relaxation_queries(family, quotient)
-    asked = [belief_query(q) for q in queries]
+    asked = [None if q is None else q.eventually() for q in queries]
     point = np.array(ideal.points[0], dtype=float)
     details: dict[str, BeliefValue] = {}
     for i, (objective, query) in enumerate(zip(family.objectives, asked)):

@@ -20,7 +20,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-from attrs import field, frozen
+from attrs import field, frozen, validators
 
 from parley_core import metrics
 from parley_core.model import Direction, Family, Objective
@@ -93,7 +93,42 @@ def _label(mask: np.ndarray | None, name: str, default: str) -> str:
     return f'"{name}"'
 
 
-def _query(index: int, objective: Objective, kernel: KernelObjective) -> str | None:
+@frozen(kw_only=True)
+class Query:
+    """A single-objective query on the relaxation, as parts: what it asks (``kind``), ``max``
+    or ``min``, its state formulas (a label such as ``"psi0"``, or ``true``/``false``), its
+    reward structure and step bound; :attr:`text` is Storm's property syntax."""
+
+    kind: KernelKind
+    best: str = field(validator=validators.in_(("max", "min")))
+    left: str = "true"
+    right: str = "false"
+    reward: str | None = None
+    steps: int | None = None
+
+    @property
+    def text(self) -> str:
+        if self.kind is KernelKind.UNTIL:
+            return f"P{self.best}=? [{self.left} U {self.right}]"
+        if self.kind is KernelKind.BOUNDED:
+            return f"P{self.best}=? [{self.left} U<={self.steps} {self.right}]"
+        reward = f'R{{"{self.reward}"}}{self.best}=?'
+        if self.kind is KernelKind.REACH_REWARD:
+            return f"{reward} [F {self.right}]"
+        if self.kind is KernelKind.CUMULATIVE:
+            return f"{reward} [C<={self.steps}]"
+        return f"{reward} [C]"
+
+    def eventually(self) -> str | None:
+        """The query as an eventually-formula (``F psi``), what Storm's belief exploration of
+        a POMDP takes: reachability (an until from ``true``) and rewards to a target; None
+        for any other."""
+        if self.kind is KernelKind.UNTIL and self.left == "true":
+            return f"P{self.best}=? [F {self.right}]"
+        return self.text if self.kind is KernelKind.REACH_REWARD else None
+
+
+def _query(index: int, objective: Objective, kernel: KernelObjective) -> Query | None:
     """The single-objective query on the relaxation (labels phi_i, psi_i; rewards r0, r1, ...)."""
     best = "max" if objective.direction is Direction.MAX else "min"
     left = _label(kernel.left, f"phi{index}", "true")
@@ -101,15 +136,19 @@ def _query(index: int, objective: Objective, kernel: KernelObjective) -> str | N
     if kernel.kind is KernelKind.UNTIL:
         if kernel.right_deadlock and left != "true":
             return None
-        return f"P{best}=? [{left} U {right}]"
+        return Query(kind=kernel.kind, best=best, left=left, right=right)
     if kernel.kind is KernelKind.BOUNDED:
-        return None if kernel.right_deadlock else f"P{best}=? [{left} U<={kernel.steps} {right}]"
-    reward = f'R{{"r{kernel.reward}"}}{best}=?'
+        return (
+            None
+            if kernel.right_deadlock
+            else Query(kind=kernel.kind, best=best, left=left, right=right, steps=kernel.steps)
+        )
+    reward = f"r{kernel.reward}"
     if kernel.kind is KernelKind.REACH_REWARD:
-        return f"{reward} [F {right}]"
+        return Query(kind=kernel.kind, best=best, right=right, reward=reward)
     if kernel.kind is KernelKind.CUMULATIVE:
-        return f"{reward} [C<={kernel.steps}]"
-    return f"{reward} [C]"
+        return Query(kind=kernel.kind, best=best, reward=reward, steps=kernel.steps)
+    return Query(kind=kernel.kind, best=best, reward=reward)
 
 
 def sound_environment(precision: float, relative: bool):
@@ -140,12 +179,12 @@ def _solve(model, text: str) -> tuple[float, float]:
 
 def relaxation_queries(
     family: Family, quotient: Quotient, wanted: Sequence[bool] | None = None
-) -> tuple[dict[str, np.ndarray], list[str | None]]:
+) -> tuple[dict[str, np.ndarray], list[Query | None]]:
     """Storm's single-objective queries on the relaxation (None where it cannot express one,
     or where ``wanted`` is False) and the state labels they use (``phi_i``, ``psi_i``: one
     more state, the relaxation's deadlock sink)."""
     labels: dict[str, np.ndarray] = {}
-    queries: list[str | None] = []
+    queries: list[Query | None] = []
     for i, (objective, kernel) in enumerate(zip(family.objectives, quotient.objectives)):
         if kernel is None or (wanted is not None and not wanted[i]):
             queries.append(None)
@@ -184,7 +223,7 @@ def ideal_point(
         elif query is None:
             point.append(_trivial(objective, kernel))
         else:
-            value, precision = _solve(model, query)
+            value, precision = _solve(model, query.text)
             point.append(value + precision * (1.0 if objective.direction is Direction.MAX else -1.0))
     by = "compiled kernels" + (", Storm" if model is not None else "")
     return Bound(

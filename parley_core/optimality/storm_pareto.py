@@ -50,7 +50,7 @@ def storm_pareto(family: Family, quotient: Quotient, precision: float = 1e-6) ->
     missing = [o.name for o, q in zip(family.objectives, queries) if q is None]
     if missing:
         raise ModelError(f"no query on the relaxation for objective(s) {', '.join(missing)}")
-    text = "multi(" + ", ".join(q for q in queries if q is not None) + ")"
+    text = "multi(" + ", ".join(q.text for q in queries if q is not None) + ")"
     model = storm_model(relaxation, labels)
     (prop,) = stormpy.parse_properties(text)
     environment = stormpy.Environment()

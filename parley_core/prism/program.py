@@ -15,7 +15,7 @@ from collections.abc import Iterable, Mapping
 
 import stormpy
 import stormpy.developer as storm_dev
-from stormpy.developer.storage import PrismBooleanVariable, PrismProgram
+from stormpy.developer.storage import PrismBooleanVariable, PrismModelType, PrismProgram
 
 from parley_core.errors import ModelError
 
@@ -66,6 +66,11 @@ def parse_properties(formulas: Iterable[str], program: PrismProgram, *, origin: 
             raise ModelError(f"{origin} {formula!r} holds {len(properties)} properties; give exactly one")
         parsed.append(properties[0])
     return parsed
+
+
+def is_dtmc(program: PrismProgram) -> bool:
+    """Whether the program declares a DTMC (``dtmc``, or PRISM's older ``probabilistic``)."""
+    return program.model_type == PrismModelType.DTMC
 
 
 def reward_structures(program: PrismProgram, ignore: Iterable[str] = ()) -> list[str]:
