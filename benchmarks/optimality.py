@@ -20,8 +20,8 @@ leaves that out: about 20 s for web_ids and 80 s for tas), and NSGA-II (as in 3)
 those exact fronts.
 
 After 2, robot_grid's full families (generated 5x5 and 6x6 maps, the published map_10; intervals
-1..10): the gap branch and bound leaves after ``--robot-time`` seconds (10 minutes by default,
-the issue's budget; ``--only-robot`` prints only this table).
+1..10): the gap branch and bound leaves after ``--robot-time`` seconds (10 minutes by default;
+``--only-robot`` prints only this table).
 
 Usage: python benchmarks/optimality.py [--seeds 10] [--bound-time 60] [--skip-gaps | --only-gaps]
        [--skip-full | --only-full] [--no-enumeration] [--time-limit 600]

@@ -28,8 +28,8 @@ parley and none of its code is used here. PAYNT's time limit counts its parsing 
 on herman), its synthesis time does not.
 
 With ``--exact`` a third parley run computes the whole front without a time limit, and PAYNT
-then gets as long as that took (if longer than ``--seconds``): the issue's target is the
-whole front in less time than PAYNT needs for its one optimum.
+then gets as long as that took (if longer than ``--seconds``): the question is whether the
+whole front takes less time than PAYNT needs for its one optimum.
 
 Usage: python benchmarks/paynt_families.py [--family dpm herman] [--seconds 600]
        [--paynt /tmp/paynt/bin/python] [--exact]

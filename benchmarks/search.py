@@ -1,5 +1,5 @@
-"""How fast does each search configuration approach the best front? (issue: the same fronts
-with a quarter of the budget)
+"""How fast does each search configuration approach the best front? (Can it reach the same
+fronts with a quarter of the budget?)
 
 Every configuration of ``--algorithms`` searches every instance with ``--seeds`` seeds and a
 budget of ``--budget`` evaluations (the archive of everything evaluated is the front, as in

@@ -1,4 +1,4 @@
-"""turtlebot in MuJoCo: the issue's time targets, measured in one run, printed as Markdown.
+"""turtlebot in MuJoCo: what its phases take, measured in one run, printed as Markdown.
 
 1. the MuJoCo motion table from scratch (an empty cache), with and without heading memory;
 2. a whole `parley run turtlebot` with the table cached, against the kinematic default;
