@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 import stormpy
-from conftest import TOY, storm_values, toy_system
 
+from conftest import TOY, storm_values, toy_system
 from parley_core import DecisionKind, Service
 from parley_core.errors import ModelError
 from parley_core.evaluate.storm import StormEvaluator
