@@ -230,7 +230,8 @@ def test_the_deadlock_label_is_each_policys_own():
 
 def _without_lookup(solver: QuotientSolver) -> QuotientSolver:
     """The solver testing each choice's labels, as before the lookup (kernels.choice_index)."""
-    solver.index = (np.full_like(solver.index[0], -1), *solver.index[1:])
+    lookup = solver.chain.lookup
+    solver.chain = solver.chain._replace(lookup=(np.full_like(lookup[0], -1), *lookup[1:]))
     return solver
 
 
@@ -257,6 +258,6 @@ def test_looking_choices_up_keeps_the_choices_a_test_of_each_keeps(name):
     for policy in policies:
         assert fast.solve(policy) == slow.solve(policy)  # bit for bit: the same choices, in order
         assert (fast.consulted == slow.consulted).all()
-    looked_up = (fast.index[0] >= 0).any()
+    looked_up = (fast.chain.lookup[0] >= 0).any()
     # synchronised: every labelled choice reads two decisions, so each is tested as before
     assert looked_up == (name != "synchronised"), looked_up

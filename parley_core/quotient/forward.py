@@ -26,6 +26,8 @@ alone and in any block (the seeds of branch and bound get the values its boxes g
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -37,14 +39,13 @@ from parley_core.quotient.relaxation import decision_lists
 
 
 @njit(cache=True)
-def _mixed_row(
-    s, policy, state_choices, choice_branches, targets, probabilities, choice_dec, choice_val,
-    state_rewards, choice_rewards, index, reward_rows, chosen, row_target, row_probability, at, row_reward,
-):  # fmt: skip
-    """State ``s``'s consistent choices under ``policy``, mixed uniformly: its successors and
-    probabilities written from ``at`` on, its rewards (one a reward row) in ``row_reward``;
-    the number of branches written (0: a deadlock)."""
-    lookup_dec, lookup_lo, lookup_start, lookup_choice, free_start, free_choice = index
+def _mixed_row(s, policy, chain, reward_rows, chosen, row_target, row_probability, at, row_reward):
+    """State ``s``'s consistent choices under ``policy`` (on the quotient's :class:`~.kernels.Chain`),
+    mixed uniformly: its successors and probabilities written from ``at`` on, its rewards
+    (one a reward row) in ``row_reward``; the number of branches written (0: a deadlock)."""
+    _, state_choices, choice_branches, targets, probabilities, choice_dec, choice_val = chain[:7]
+    state_rewards, choice_rewards, lookup = chain[7:]
+    lookup_dec, lookup_lo, lookup_start, lookup_choice, free_start, free_choice = lookup
     k = 0
     dd = lookup_dec[s]
     if dd >= 0:  # one decision decides among the labelled choices
@@ -90,20 +91,51 @@ def _mixed_row(
     return length
 
 
+class Walked(NamedTuple):
+    """A box as :func:`box_cumulative` walks it: decision ``d`` ranges over
+    ``dom_vals[dom_ptr[d] + lo[d] + i]``, ``i < widths[d]``, and the blocks run over decision
+    ``block``."""
+
+    lo: np.ndarray
+    widths: np.ndarray
+    block: int
+    dom_ptr: np.ndarray
+    dom_vals: np.ndarray
+
+
+class Objectives(NamedTuple):
+    """What :func:`box_cumulative` computes on a quotient: ``out[p, o]`` is the reward of row
+    ``reward_rows[o]`` within ``steps[o]`` steps; ``state_decisions`` (CSR into ``decisions``)
+    the decisions each state's choices mention; ``idle`` the states from which no state that
+    earns can be reached under any choices (their probability is dropped)."""
+
+    state_decisions: np.ndarray
+    decisions: np.ndarray
+    reward_rows: np.ndarray
+    steps: np.ndarray
+    idle: np.ndarray
+
+
 @njit(cache=True)
-def box_cumulative(
-    lo, widths, block, dom_ptr, dom_vals, initial, state_choices, choice_branches, targets, probabilities,
-    choice_dec, choice_val, state_rewards, choice_rewards, index, state_decisions, decisions,
-    reward_rows, steps, idle, rows_out, out,
-):  # fmt: skip
-    """The box's policies in ``rows_out`` (decision values) and their objectives in ``out``:
-    ``out[p, o]`` is the reward of row ``reward_rows[o]`` within ``steps[o]`` steps. Decision
-    ``d`` ranges over ``dom_vals[dom_ptr[d] + lo[d] + i]``, ``i < widths[d]``; row
+def box_cumulative(box, chain, objectives, rows_out, out):
+    """The :class:`Walked` box's policies in ``rows_out`` (decision values) and their
+    :class:`Objectives` in ``out``, on the quotient's :class:`~.kernels.Chain`: row
     ``b * widths[block] + c`` has the ``c``-th value of ``block`` and the ``b``-th assignment
-    of the others (the last varying fastest). ``index`` is :func:`.kernels.choice_index`'s;
-    ``state_decisions`` (CSR into ``decisions``) the decisions each state's choices mention;
-    ``idle`` the states from which no state that earns can be reached under any choices
-    (their probability is dropped)."""
+    of the others (the last varying fastest)."""
+    lo, widths, block, dom_ptr, dom_vals = box
+    (
+        initial,
+        state_choices,
+        choice_branches,
+        targets,
+        probabilities,
+        choice_dec,
+        choice_val,
+        state_rewards,
+        choice_rewards,
+        lookup,
+    ) = chain
+    state_decisions, decisions, reward_rows, steps, idle = objectives
     n = len(state_choices) - 1
     n_dec = len(lo)
     n_obj = len(reward_rows)
@@ -204,17 +236,30 @@ def box_cumulative(
                         span = (column_start[s + 1] - column_start[s]) // width
                         for c in range(width):
                             policy[block] = values[c]
+                            at = column_start[s] + c * span
                             column_len[s, c] = _mixed_row(
-                                s, policy, state_choices, choice_branches, targets, probabilities, choice_dec,
-                                choice_val, state_rewards, choice_rewards, index, reward_rows, chosen,
-                                column_target, column_probability, column_start[s] + c * span, column_reward[s, c],
-                            )  # fmt: skip
+                                s,
+                                policy,
+                                chain,
+                                reward_rows,
+                                chosen,
+                                column_target,
+                                column_probability,
+                                at,
+                                column_reward[s, c],
+                            )
                     else:
                         row_len[s] = _mixed_row(
-                            s, policy, state_choices, choice_branches, targets, probabilities, choice_dec,
-                            choice_val, state_rewards, choice_rewards, index, reward_rows, chosen,
-                            row_target, row_probability, row_start[s], row_reward[s],
-                        )  # fmt: skip
+                            s,
+                            policy,
+                            chain,
+                            reward_rows,
+                            chosen,
+                            row_target,
+                            row_probability,
+                            row_start[s],
+                            row_reward[s],
+                        )
                 if not reads[s]:
                     length = row_len[s]
                     if length == 0:  # a deadlock: it keeps its probability and earns nothing
@@ -315,16 +360,21 @@ class BoxWalker:
     def __init__(self, quotient: Quotient) -> None:
         q = quotient
         self.q = q
-        self.index = kernels.choice_index(q.state_choices, q.choice_dec, q.choice_val)
-        self.state_decisions, self.decisions = decision_lists(q.state_choices, q.choice_dec)
+        self.chain = kernels.chain_of(q)
+        state_decisions, decisions = decision_lists(q.state_choices, q.choice_dec)
         objectives = [o for o in q.objectives if o is not None]
-        self.reward_rows = np.array([o.reward for o in objectives], dtype=np.int64)
-        self.steps = np.array([o.steps for o in objectives], dtype=np.int64)
-        earns = (q.state_rewards[self.reward_rows] != 0).any(axis=0)
+        reward_rows = np.array([o.reward for o in objectives], dtype=np.int64)
+        earns = (q.state_rewards[reward_rows] != 0).any(axis=0)
         owner = np.repeat(np.arange(q.states), np.diff(q.state_choices))
-        earns[owner[(q.choice_rewards[self.reward_rows] != 0).any(axis=0)]] = True
+        earns[owner[(q.choice_rewards[reward_rows] != 0).any(axis=0)]] = True
         state_branches = q.choice_branches[q.state_choices]  # a state's branches are contiguous
-        self.idle = ~kernels.backward_reach(q.states, state_branches, q.targets, earns, np.ones(q.states, dtype=bool))
+        self.objectives = Objectives(
+            state_decisions=state_decisions,
+            decisions=decisions,
+            reward_rows=reward_rows,
+            steps=np.array([o.steps for o in objectives], dtype=np.int64),
+            idle=~kernels.backward_reach(q.states, state_branches, q.targets, earns, np.ones(q.states, dtype=bool)),
+        )
 
     @classmethod
     def of(cls, quotient: Quotient, widest: int = 1) -> BoxWalker | None:
@@ -340,14 +390,9 @@ class BoxWalker:
     def solve(self, box: Box, dom_ptr: np.ndarray, dom_vals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The box's policies (rows, in the blocks' order) and their values; the blocks run
         over the box's widest decision."""
-        q = self.q
         widths = box.hi - box.lo + 1
-        block = int(np.argmax(widths))
+        walked = Walked(lo=box.lo, widths=widths, block=int(np.argmax(widths)), dom_ptr=dom_ptr, dom_vals=dom_vals)
         rows = np.empty((box.size, len(box.lo)), dtype=np.int64)
-        values = np.empty((box.size, len(self.steps)))
-        box_cumulative(
-            box.lo, widths, block, dom_ptr, dom_vals, q.initial, q.state_choices, q.choice_branches,
-            q.targets, q.probabilities, q.choice_dec, q.choice_val, q.state_rewards, q.choice_rewards,
-            self.index, self.state_decisions, self.decisions, self.reward_rows, self.steps, self.idle, rows, values,
-        )  # fmt: skip
+        values = np.empty((box.size, len(self.objectives.steps)))
+        box_cumulative(walked, self.chain, self.objectives, rows, values)
         return rows, values

@@ -4,6 +4,8 @@ backward induction there, and its occupancy forward with every decision value's 
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -118,9 +120,61 @@ def chosen_rewards(rewards, rows, steps, coefficients, t, chosen, out):
         _step_rewards(rewards, rows, steps, coefficients, t, chosen[s], out[s])
 
 
+class Relaxed(NamedTuple):
+    """The relaxation's arrays the scores walk (a :class:`~parley_core.quotient.relaxation.Relaxation`'s):
+    per state its actions, per action its entries (``targets``, ``probabilities``), and per
+    state the decisions its actions mention (CSR into ``decisions``)."""
+
+    state_actions: np.ndarray
+    action_entries: np.ndarray
+    targets: np.ndarray
+    probabilities: np.ndarray
+    state_decisions: np.ndarray
+    decisions: np.ndarray
+
+
+class Reach(NamedTuple):
+    """The reachability objective of the weighted sum, if there is one (``has_until``): the
+    states of ``left U right``, and its step bound (negative: unbounded)."""
+
+    has_until: bool
+    left: np.ndarray
+    right: np.ndarray
+    until_steps: int
+
+
+class StepRewards(NamedTuple):
+    """The weighted sum's step-bounded rewards: reward ``rows`` of ``rewards`` within
+    ``steps`` each, weighted per channel by ``coefficients``."""
+
+    rewards: np.ndarray
+    rows: np.ndarray
+    steps: np.ndarray
+    coefficients: np.ndarray
+
+
+class Listing(NamedTuple):
+    """What :func:`deviations` lists: per step the states (CSR ``pointers`` into ``listed``)
+    and whether the policy itself can be there (``on_policy``)."""
+
+    pointers: np.ndarray
+    listed: np.ndarray
+    on_policy: np.ndarray
+
+
+class Dense(NamedTuple):
+    """One step's values and the next's, dense over the states [states, channels]: what
+    carries :func:`backward` from one step to the next (``a``: the reachability objective not
+    yet settled, ``b``: settled)."""
+
+    next_a: np.ndarray
+    next_b: np.ndarray
+    now_a: np.ndarray
+    now_b: np.ndarray
+
+
 @njit(cache=True, nogil=True)
-def backward(pointers, listed, horizon, chosen, action_entries, targets, probabilities, rewards_by_window, window,
-             has_until, left, right, until_steps, gain, terminal, values, next_a, next_b, now_a, now_b):  # fmt: skip
+def backward(listing, horizon, chosen, relaxed, rewards_by_window, window, reach, gain, terminal, values, dense):
     """Backward induction from the horizon down to step 0 at the states :func:`deviations`
     lists, per channel (column), for the policy whose action at state ``s`` is ``chosen[s]``:
     ``b`` the value once the reachability objective is settled (or when there is none), ``a``
@@ -129,6 +183,10 @@ def backward(pointers, listed, horizon, chosen, action_entries, targets, probabi
     (``values[i]``: the ``a`` and ``b`` values of the ``i``-th); the dense ``next``/``now``
     arrays carry one step to the next. One call for all steps (a numba call per step costs
     more than its work), and one pass over an action's entries for both values."""
+    pointers, listed = listing.pointers, listing.listed
+    action_entries, targets, probabilities = relaxed.action_entries, relaxed.targets, relaxed.probabilities
+    has_until, left, right, until_steps = reach
+    next_a, next_b, now_a, now_b = dense
     channels = next_a.shape[1]
     next_a[:] = 0.0
     next_b[:] = 0.0
@@ -188,9 +246,7 @@ def backward(pointers, listed, horizon, chosen, action_entries, targets, probabi
 
 
 @njit(cache=True, nogil=True)
-def forward(pointers, listed, on_policy, horizon, chosen, state_actions, action_entries, targets, probabilities,
-            rewards, rows, steps, coefficients, has_until, left, right, until_steps, state_decisions, decisions,
-            sizes, masses, score, same, stamp, known, values, following_a, following_b):  # fmt: skip
+def forward(listing, horizon, chosen, relaxed, step_rewards, reach, sizes, same, work, values, following):
     """The policy's occupancy forward from the initial state, step by step, with the scores:
     at step ``t``, add to ``score[c, d, k]`` the value (channel ``c``) of moving, at the
     states with mass that consult ``d``, to the action that gives ``d`` the value ``k`` and
@@ -199,7 +255,14 @@ def forward(pointers, listed, on_policy, horizon, chosen, state_actions, action_
     along the policy's actions into ``masses[1 - t % 2]``. The values of step ``t + 1`` are
     spread from ``values`` into the dense ``following`` arrays first (the successors the
     step reads are all listed at ``t + 1``). An action's value is computed once per state
-    and mode (``known[same[action]]``, valid where ``stamp`` says so)."""
+    and mode (``known[same[action]]``, valid where ``stamp`` says so); ``work`` is
+    (``masses``, ``score``, ``stamp``, ``known``), ``following`` the two dense arrays."""
+    pointers, listed, on_policy = listing
+    state_actions, action_entries, targets, probabilities, state_decisions, decisions = relaxed
+    rewards, rows, steps, coefficients = step_rewards
+    has_until, left, right, until_steps = reach
+    masses, score, stamp, known = work
+    following_a, following_b = following
     channels = following_a.shape[1]
     q = np.empty(channels)
     local_score = np.zeros((score.shape[1], score.shape[2], channels))  # contiguous per value

@@ -41,7 +41,18 @@ from parley_core.model import Family
 from parley_core.quotient import subfamily as k
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
-from parley_core.quotient.gradient import backward, chosen_rewards, deviations, forward, representatives
+from parley_core.quotient.gradient import (
+    Dense,
+    Listing,
+    Reach,
+    Relaxed,
+    StepRewards,
+    backward,
+    chosen_rewards,
+    deviations,
+    forward,
+    representatives,
+)
 
 REACH_TOLERANCE = 1e-6
 REACH_SWEEPS = 200
@@ -81,6 +92,10 @@ class PolicyImprover:
             self.table[d, : len(domain)] = domain
         self._where = [{int(v): i for i, v in enumerate(domain)} for domain in domains]
         self.same = representatives(r.state_actions, r.action_entries, r.targets, r.probabilities, r.rewards)
+        self.arrays = Relaxed(
+            r.state_actions, r.action_entries, r.targets, r.probabilities, r.state_decisions, r.decisions
+        )
+        """The relaxation's arrays as the compiled loops of the scores read them."""
 
     @property
     def available(self) -> bool:
@@ -143,19 +158,41 @@ class PolicyImprover:
         # each step's values at its listed states only; dense arrays carry a step to the next
         values_at = np.empty((len(listed), 2, channels))
         dense = [np.empty((n, channels)) for _ in range(4)]
-        backward(pointers, listed, horizon, chosen, r.action_entries, r.targets, r.probabilities, rewards_by_window,
-                 window, has_until, self.left, self.right, self.until_steps, gain, terminal, values_at,
-                 *dense)  # fmt: skip
+        listing = Listing(pointers, listed, on_policy)
+        reach = Reach(has_until, self.left, self.right, self.until_steps)
+        backward(
+            listing,
+            horizon,
+            chosen,
+            self.arrays,
+            rewards_by_window,
+            window,
+            reach,
+            gain,
+            terminal,
+            values_at,
+            Dense(*dense),
+        )
         values = np.array(values_at[0, 0 if has_until else 1])  # the initial state, listed first at step 0
 
         score = np.zeros((channels, len(self.sizes), int(self.sizes.max()) if len(self.sizes) else 0))
         masses = np.zeros((2, 2, n))  # [step parity, pending or not, state]
         masses[0, 0 if has_until else 1, r.initial] = 1.0
         stamp, known = np.zeros(r.actions + 1, dtype=np.int64), np.empty((r.actions, channels))
-        forward(pointers, listed, on_policy, horizon, chosen, r.state_actions, r.action_entries, r.targets,
-                r.probabilities, *rewards, has_until, self.left, self.right, self.until_steps, r.state_decisions,
-                r.decisions, self.sizes, masses, score, self.same, stamp, known, values_at, dense[0],
-                dense[1])  # fmt: skip
+        work = (masses, score, stamp, known)
+        forward(
+            listing,
+            horizon,
+            chosen,
+            self.arrays,
+            StepRewards(*rewards),
+            reach,
+            self.sizes,
+            self.same,
+            work,
+            values_at,
+            (dense[0], dense[1]),
+        )
         for d, size in enumerate(self.sizes):
             score[:, d, size:] = -np.inf
         return score, values

@@ -9,6 +9,8 @@ choice into self-loops, and writes the reachable part as a CSR matrix over local
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -17,6 +19,63 @@ FIRST_GUESS = 12
 not converge in time."""
 RATE_SWEEPS = 4
 """The sweeps over which :func:`gauss_seidel` measures that rate."""
+
+
+class Chain(NamedTuple):
+    """The quotient's arrays that every walk of it reads (a :class:`~parley_core.quotient.coloring.Quotient`'s,
+    made once per solver or walker by :func:`chain_of`): the initial state; per state its
+    choices (CSR into the choices); per choice its branches (CSR into ``targets`` and
+    ``probabilities``) and the decision and value it is labelled with (-1: unlabelled); the
+    state and choice rewards per reward structure; and :func:`choice_index`'s ``lookup``."""
+
+    initial: int
+    state_choices: np.ndarray
+    choice_branches: np.ndarray
+    targets: np.ndarray
+    probabilities: np.ndarray
+    choice_dec: np.ndarray
+    choice_val: np.ndarray
+    state_rewards: np.ndarray
+    choice_rewards: np.ndarray
+    lookup: tuple
+
+
+def chain_of(quotient) -> Chain:
+    """The :class:`Chain` of a quotient, with its choice index."""
+    q = quotient
+    index = choice_index(q.state_choices, q.choice_dec, q.choice_val)
+    return Chain(
+        q.initial,
+        q.state_choices,
+        q.choice_branches,
+        q.targets,
+        q.probabilities,
+        q.choice_dec,
+        q.choice_val,
+        q.state_rewards,
+        q.choice_rewards,
+        index,
+    )
+
+
+class Reached(NamedTuple):
+    """Work space of :func:`explore`, as long as the quotient has states (``cols``, ``vals``:
+    its branches and a self-loop per state), and what it writes: the reached states' global
+    indices in local order (``order``), the DTMC as CSR over local indices (``indptr``,
+    ``cols``, ``vals``), each reward structure's reward per local state (``rewards``), each
+    state's distance from the initial one (``levels``), and the states without a consistent
+    choice (``stuck``); ``local_of`` (-1 everywhere between calls) and ``chosen`` (as long as
+    the most choices a state has) are scratch."""
+
+    local_of: np.ndarray
+    order: np.ndarray
+    indptr: np.ndarray
+    cols: np.ndarray
+    vals: np.ndarray
+    rewards: np.ndarray
+    levels: np.ndarray
+    chosen: np.ndarray
+    stuck: np.ndarray
 
 
 @njit(cache=True)
@@ -34,44 +93,36 @@ def _consistent(policy, choice_dec, choice_val, c, consulted):
 
 
 @njit(cache=True)
-def explore(
-    policy,
-    initial,
-    state_choices,
-    choice_branches,
-    targets,
-    probabilities,
-    choice_dec,
-    choice_val,
-    state_rewards,
-    choice_rewards,
-    local_of,
-    order,
-    indptr,
-    cols,
-    vals,
-    rewards_out,
-    levels,
-    chosen,
-    stuck,
-    consulted,
-    index,
-):
-    """The reachable DTMC of ``policy``; returns (states, entries).
+def explore(policy, chain, reached, consulted):
+    """The reachable DTMC of ``policy`` on the quotient's :class:`Chain`, written into the
+    :class:`Reached` work space; returns (states, entries).
 
-    ``local_of`` must hold -1 everywhere on entry and does again on return. ``rewards_out``
-    [r, :states] receives each reward structure's state reward plus the mean action reward
-    of the consistent choices (nothing in a state without one: Storm drops a deadlock state's
-    rewards); ``levels`` each state's distance (in steps) from the initial one. ``chosen`` is
-    work space for the consistent choices of one state (as long as the most choices a state has);
-    ``stuck`` marks the states without one, which Storm's DTMC of the policy labels "deadlock".
-    ``consulted`` (False everywhere on entry) gets True for each decision a reachable state's
-    consistency test reads: a policy that agrees with this one on those decisions has the
-    same reachable DTMC, choice by choice. ``index`` is :func:`choice_index`'s: where a state's
-    labelled choices each test one value of the same decision, the consistent one is looked up
-    instead of testing each (the same choices, in the same order).
+    ``reached.local_of`` must hold -1 everywhere on entry and does again on return.
+    ``reached.rewards`` [r, :states] receives each reward structure's state reward plus the
+    mean action reward of the consistent choices (nothing in a state without one: Storm
+    drops a deadlock state's rewards); ``levels`` each state's distance (in steps) from the
+    initial one; ``stuck`` marks the states without a consistent choice, which Storm's DTMC
+    of the policy labels "deadlock". ``consulted`` (False everywhere on entry) gets True for
+    each decision a reachable state's consistency test reads: a policy that agrees with this
+    one on those decisions has the same reachable DTMC, choice by choice. Where a state's
+    labelled choices each test one value of the same decision, the consistent one is looked
+    up in the chain's ``lookup`` (:func:`choice_index`) instead of testing each (the same
+    choices, in the same order).
     """
-    lookup_dec, lookup_lo, lookup_start, lookup_choice, free_start, free_choice = index
+    (
+        initial,
+        state_choices,
+        choice_branches,
+        targets,
+        probabilities,
+        choice_dec,
+        choice_val,
+        state_rewards,
+        choice_rewards,
+        lookup,
+    ) = chain
+    local_of, order, indptr, cols, vals, rewards_out, levels, chosen, stuck = reached
+    lookup_dec, lookup_lo, lookup_start, lookup_choice, free_start, free_choice = lookup
     n_rewards = state_rewards.shape[0]
     order[0] = initial
     local_of[initial] = 0

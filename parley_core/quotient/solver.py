@@ -66,17 +66,21 @@ class QuotientSolver:
     def __init__(self, quotient: Quotient) -> None:
         self.q = quotient
         n, b = quotient.states, quotient.branches
-        self.local_of = np.full(n, -1, dtype=np.int64)
-        self.order = np.empty(n, dtype=np.int64)
-        self.indptr = np.empty(n + 1, dtype=np.int64)
-        self.cols = np.empty(max(b, n) + n, dtype=np.int64)
-        self.vals = np.empty(max(b, n) + n, dtype=np.float64)
-        self.rewards = np.empty((quotient.state_rewards.shape[0], n))
-        self.levels = np.empty(n, dtype=np.int64)
-        self.chosen = np.empty(max(1, int(np.diff(quotient.state_choices).max(initial=0))), dtype=np.int64)
-        self.stuck = np.zeros(n, dtype=np.bool_)
-        self.index = kernels.choice_index(quotient.state_choices, quotient.choice_dec, quotient.choice_val)
-        """Per state, its consistent choice looked up by value where one decision decides."""
+        self.reached = kernels.Reached(
+            local_of=np.full(n, -1, dtype=np.int64),
+            order=np.empty(n, dtype=np.int64),
+            indptr=np.empty(n + 1, dtype=np.int64),
+            cols=np.empty(max(b, n) + n, dtype=np.int64),
+            vals=np.empty(max(b, n) + n, dtype=np.float64),
+            rewards=np.empty((quotient.state_rewards.shape[0], n)),
+            levels=np.empty(n, dtype=np.int64),
+            chosen=np.empty(max(1, int(np.diff(quotient.state_choices).max(initial=0))), dtype=np.int64),
+            stuck=np.zeros(n, dtype=np.bool_),
+        )
+        """Where :func:`.kernels.explore` writes a policy's DTMC (its arrays, for the solves)."""
+        self.chain = kernels.chain_of(quotient)
+        """The quotient's arrays as the kernels read them; ``chain.lookup`` looks up a state's
+        consistent choice by value where one decision decides."""
         self.consulted = np.zeros(0, dtype=np.bool_)
         """The decisions the last solved policy consulted (see :func:`.kernels.explore`)."""
         self.last_states = 0
@@ -98,36 +102,16 @@ class QuotientSolver:
         if len(self.consulted) != len(policy):
             self.consulted = np.zeros(len(policy), dtype=np.bool_)
         self.consulted[:] = False
-        count, nnz = kernels.explore(
-            policy,
-            q.initial,
-            q.state_choices,
-            q.choice_branches,
-            q.targets,
-            q.probabilities,
-            q.choice_dec,
-            q.choice_val,
-            q.state_rewards,
-            q.choice_rewards,
-            self.local_of,
-            self.order,
-            self.indptr,
-            self.cols,
-            self.vals,
-            self.rewards,
-            self.levels,
-            self.chosen,
-            self.stuck,
-            self.consulted,
-            self.index,
-        )
+        count, nnz = kernels.explore(policy, self.chain, self.reached, self.consulted)
         self.last_states = count
-        indptr, cols, vals = self.indptr[: count + 1], self.cols[:nnz], self.vals[:nnz]
-        order = self.order[:count]
+        indptr, cols, vals = self.reached.indptr[: count + 1], self.reached.cols[:nnz], self.reached.vals[:nnz]
+        order = self.reached.order[:count]
         values: list[float | None] = [None] * len(q.objectives)
         shared: dict[bytes, _Equations] = {}
         for steps, (indices, rewards) in self.cumulative.items():
-            totals = kernels.cumulative(count, indptr, cols, vals, steps, self.rewards[rewards, :count], self.levels)
+            totals = kernels.cumulative(
+                count, indptr, cols, vals, steps, self.reached.rewards[rewards, :count], self.reached.levels
+            )
             for i, total in zip(indices, totals):
                 values[i] = float(total)
         for i, objective in enumerate(q.objectives):
@@ -149,10 +133,10 @@ class QuotientSolver:
             left, right = objective.left[order], self._right(objective, order, count)
             x = np.where(right, 1.0, 0.0)
             x = kernels.bounded(
-                count, indptr, cols, vals, objective.steps, x, np.zeros(count), left & ~right, self.levels
+                count, indptr, cols, vals, objective.steps, x, np.zeros(count), left & ~right, self.reached.levels
             )
             return float(x[0])
-        reward = self.rewards[objective.reward, :count].copy()
+        reward = self.reached.rewards[objective.reward, :count].copy()
         if objective.kind is KernelKind.REACH_REWARD:
             right = self._right(objective, order, count)
             can = kernels.backward_reach(count, indptr, cols, right, np.ones(count, bool))
@@ -185,7 +169,7 @@ class QuotientSolver:
     def _right(self, objective, order, count) -> np.ndarray:
         """The objective's target states, local: the policy's own deadlocks for "deadlock"."""
         if objective.right_deadlock:
-            return objective.right[order] | self.stuck[:count]
+            return objective.right[order] | self.reached.stuck[:count]
         return objective.right[order]
 
     def _solve(self, count, indptr, cols, vals, free, x, constant, exact, shared, order) -> float:
