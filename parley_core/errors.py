@@ -16,6 +16,11 @@ class PluginError(ParleyError):
     """A plugin is malformed, or two plugins register the same case study."""
 
 
+class PluginWarning(UserWarning):
+    """An installed plugin is broken and was skipped; the other case studies stay usable
+    (the command prints it once as ``warning: ...``)."""
+
+
 class UnknownCaseStudyError(ParleyError):
     """The requested case study is not registered."""
 

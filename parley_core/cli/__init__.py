@@ -14,12 +14,30 @@ is one JSON document and nothing else.
 
 from __future__ import annotations
 
+import sys
+import warnings
+
 from parley_core.cli import adaptation, case_studies, controllers, evaluation, experiment, synthesis  # noqa: F401, I001  (they register commands, in this order)
 from parley_core.cli.app import app
+from parley_core.errors import PluginWarning
 
 
 def main() -> None:
-    app()
+    """The command, with each broken plugin's warning printed once as ``warning: ...``."""
+    shown: set[str] = set()
+    original = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if not issubclass(category, PluginWarning):
+            original(message, category, filename, lineno, file, line)
+        elif str(message) not in shown:
+            shown.add(str(message))
+            print(f"warning: {message}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", PluginWarning)
+        warnings.showwarning = show
+        app()
 
 
 __all__ = ["app", "main"]

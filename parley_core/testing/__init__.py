@@ -61,7 +61,7 @@ def case_study(name: str) -> CaseStudy:
     """An installed case study by name (built-in or from an entry point)."""
     from parley_core.plugin.manager import load_registry
 
-    return load_registry().get(name)
+    return load_registry(strict=True).get(name)
 
 
 def family(

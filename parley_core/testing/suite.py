@@ -45,7 +45,7 @@ class ConformanceSuite:
             if names is None:
                 from parley_core.plugin.manager import load_registry
 
-                names = load_registry().names
+                names = load_registry(strict=True).names
             metafunc.parametrize("parley_case_name", names, scope="class")
 
     @pytest.fixture(scope="class")
