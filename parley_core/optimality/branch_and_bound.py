@@ -35,6 +35,7 @@ import math
 import time
 from collections import deque
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from attrs import field, frozen
@@ -120,16 +121,10 @@ def branch_and_bound(
     quotient: Quotient,
     evaluate: Callable[[np.ndarray], np.ndarray],
     seeds: tuple[np.ndarray, np.ndarray] | None = None,
-    time_limit: float | None = None,
-    progress: Callable[[float], None] | None = None,
-    leaf: int = LEAF,
-    adaptive: bool = True,
-    root_cuts: tuple[tuple[np.ndarray, float], ...] = (),
-    bounds: RelaxedObjectives | None = None,
-    fronts: Callable[[list[Box], np.ndarray], Pending] | None = None,
-    whole: bool = False,
+    **options: Any,
 ) -> ExactResult:
-    """The family's Pareto front (see the module docstring). ``evaluate`` maps rows of decision
+    """The family's Pareto front (see the module docstring): a :class:`BranchAndBound` with
+    ``options`` (its keyword arguments), run from ``seeds``. ``evaluate`` maps rows of decision
     values to objective values; ``seeds`` (rows, values) start the archive; ``progress``
     receives the fraction of the family resolved so far (pruned or evaluated), or of the time
     limit used if that is more; ``root_cuts`` are half-spaces (weights, level; sign space) every
@@ -146,19 +141,7 @@ def branch_and_bound(
     decision's whole range: what an evaluator that walks a box's policies in blocks over its
     widest decision needs to be fast (:class:`~parley_core.quotient.forward.BoxWalker`; on tas
     about 1.6 times faster a policy than the balanced leaves bisection leaves otherwise)."""
-    return BranchAndBound(
-        family,
-        quotient,
-        evaluate,
-        time_limit=time_limit,
-        progress=progress,
-        leaf=leaf,
-        adaptive=adaptive,
-        root_cuts=root_cuts,
-        bounds=bounds,
-        fronts=fronts,
-        whole=whole,
-    ).run(seeds)
+    return BranchAndBound(family, quotient, evaluate, **options).run(seeds)
 
 
 class _Costs:

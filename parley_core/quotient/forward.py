@@ -123,18 +123,8 @@ def box_cumulative(box, chain, objectives, rows_out, out):
     ``b * widths[block] + c`` has the ``c``-th value of ``block`` and the ``b``-th assignment
     of the others (the last varying fastest)."""
     lo, widths, block, dom_ptr, dom_vals = box
-    (
-        initial,
-        state_choices,
-        choice_branches,
-        targets,
-        probabilities,
-        choice_dec,
-        choice_val,
-        state_rewards,
-        choice_rewards,
-        lookup,
-    ) = chain
+    initial, state_choices, choice_branches, targets, probabilities = chain[:5]
+    choice_dec, choice_val, state_rewards, choice_rewards, lookup = chain[5:]
     state_decisions, decisions, reward_rows, steps, idle = objectives
     n = len(state_choices) - 1
     n_dec = len(lo)

@@ -109,18 +109,8 @@ def explore(policy, chain, reached, consulted):
     up in the chain's ``lookup`` (:func:`choice_index`) instead of testing each (the same
     choices, in the same order).
     """
-    (
-        initial,
-        state_choices,
-        choice_branches,
-        targets,
-        probabilities,
-        choice_dec,
-        choice_val,
-        state_rewards,
-        choice_rewards,
-        lookup,
-    ) = chain
+    initial, state_choices, choice_branches, targets, probabilities = chain[:5]
+    choice_dec, choice_val, state_rewards, choice_rewards, lookup = chain[5:]
     local_of, order, indptr, cols, vals, rewards_out, levels, chosen, stuck = reached
     lookup_dec, lookup_lo, lookup_start, lookup_choice, free_start, free_choice = lookup
     n_rewards = state_rewards.shape[0]
