@@ -28,7 +28,16 @@ from parley_core import __version__
 from parley_core.api import *  # noqa: F403  (the library API: every name of parley_core.api.__all__)
 from parley_core.api import __all__ as _api
 from parley_core.constraints import Constraint
-from parley_core.errors import ModelError, OptionError, OutputError, ParleyDefect, ParleyError, PolicyError, SearchError
+from parley_core.errors import (
+    ModelError,
+    OptionError,
+    OutputError,
+    ParleyDefect,
+    ParleyError,
+    PolicyError,
+    SearchError,
+    WorkerError,
+)
 from parley_core.model import Front, Objective, Policy, Valued
 from parley_core.urc.controller import URC
 
@@ -47,5 +56,6 @@ __all__ = [
     "PolicyError",
     "SearchError",
     "Valued",
+    "WorkerError",
     "__version__",
 ]

@@ -49,6 +49,11 @@ class ObservationError(ParleyError):
     """An observation the controller was not synthesized for."""
 
 
+class WorkerError(ParleyError):
+    """A worker process ended abnormally (a crash in Storm, the memory killer) or could not
+    start; the work stopped cleanly."""
+
+
 class ParleyDefect(Exception):
     """Something parley got wrong, not the user: the CLI prints it in one line and exits with
     status 3, and asks for a report. Never a subclass of :class:`ParleyError`."""

@@ -24,13 +24,12 @@ dispatch state of a batch would carry instead of the policies' starts.
 from __future__ import annotations
 
 import math
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 from attrs import frozen
 
 from parley_core.errors import ModelError
-from parley_core.evaluate.pool import PoolOwner, default_workers, worker_state
+from parley_core.evaluate.pool import PoolOwner, ProcessPool, default_workers, worker_state
 from parley_core.evaluate.storm import check_instance, reference_environment, unbounded_reward
 from parley_core.model import Family
 from parley_core.prism import program as prism
@@ -141,7 +140,7 @@ class BatchStormEvaluator(PoolOwner):
         self.task = BatchTask.of(family)
         self.local = BatchChecker(self.task)
         self.workers = default_workers(workers)
-        self._pool: ProcessPoolExecutor | None = None
+        self._pool: ProcessPool | None = None
         self.states_per_policy: float | None = None
         """Measured on the first batch; sets the batch size."""
         self.states = 0

@@ -12,12 +12,11 @@ by Storm on the quotient). Any other objective is evaluated by the Storm evaluat
 from __future__ import annotations
 
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
 from parley_core.boxes import Box, BoxValues, Ready, box_rows, local_front
-from parley_core.evaluate.pool import default_workers, spawn_pool, stop_pool
+from parley_core.evaluate.pool import ProcessPool, default_workers, spawn_pool, stop_pool
 from parley_core.evaluate.storm import StormEvaluator
 from parley_core.model import Family
 from parley_core.progress import Progress
@@ -174,7 +173,7 @@ class QuotientEvaluator:
         self.workers = default_workers(workers)
         self.fallback = tuple(o.name for o, q in zip(family.objectives, self.quotient.objectives) if q is None)
         self._storm: StormEvaluator | None = None
-        self._pool: ProcessPoolExecutor | None = None
+        self._pool: ProcessPool | None = None
         self.direct_solves = 0
         """Policies whose sweeps could not be certified and were solved directly."""
         self.uncertified = 0
@@ -334,7 +333,7 @@ class QuotientEvaluator:
             "boxes_walked": bool(self._walk),
         }
 
-    def _executor(self) -> ProcessPoolExecutor:
+    def _executor(self) -> ProcessPool:
         if self._pool is None:
             self._pool = spawn_pool(self.workers, initializer=_worker_start, initargs=(self.quotient,))
         return self._pool

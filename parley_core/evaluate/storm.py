@@ -7,7 +7,6 @@ one by sound value iteration with the precision chosen per property shape
 from __future__ import annotations
 
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -16,7 +15,7 @@ import stormpy.developer as storm_dev
 from attrs import frozen
 
 from parley_core.errors import ModelError
-from parley_core.evaluate.pool import PoolOwner, default_workers, worker_state
+from parley_core.evaluate.pool import PoolOwner, ProcessPool, default_workers, worker_state
 from parley_core.model import Family
 from parley_core.prism import program as prism
 from parley_core.progress import Progress
@@ -190,7 +189,7 @@ class StormEvaluator(PoolOwner):
         self.task = StormTask.of(family)
         self.local = StormChecker(self.task)  # also validates the family before any work is sent out
         self.workers = default_workers(workers)
-        self._pool: ProcessPoolExecutor | None = None
+        self._pool: ProcessPool | None = None
 
     def describe(self) -> dict[str, object]:
         return {}

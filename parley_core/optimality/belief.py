@@ -24,11 +24,14 @@ stands for that objective, and the bound's details say so.
 
 from __future__ import annotations
 
-import multiprocessing
+import os
+import signal
 import time
 
 import numpy as np
+from loky.backend.context import get_context
 
+from parley_core.evaluate.pool import may_start_processes
 from parley_core.model import Direction, Family
 from parley_core.optimality.bound import PRECISION, Bound, ideal_point, relaxation_queries, sound_environment
 from parley_core.optimality.records import BeliefValue
@@ -65,7 +68,9 @@ def _discretize(relaxation, labels, query: str, resolution: int, connection) -> 
 def _within(relaxation, labels, query: str, resolution: int, seconds: float) -> tuple[str, float | str]:
     """:func:`_discretize` in a spawned process, stopped after ``seconds``: ("value", v), or
     ("error", why) when Storm refused, died or ran out of time."""
-    context = multiprocessing.get_context("spawn")
+    if not may_start_processes():
+        return "error", "Storm's belief exploration needs a process of its own, and this one may start none"
+    context = get_context("loky")  # spawned without re-running the caller's main module
     receive, send = context.Pipe(duplex=False)
     process = context.Process(target=_discretize, args=(relaxation, labels, query, resolution, send), daemon=True)
     process.start()
@@ -78,7 +83,7 @@ def _within(relaxation, labels, query: str, resolution: int, seconds: float) -> 
         return "error", f"Storm's belief exploration ended without an answer (exit status {process.exitcode})"
     finally:
         if process.is_alive():
-            process.kill()
+            os.kill(process.pid, signal.SIGKILL)  # loky's processes have no kill()
         process.join()
         receive.close()
 
