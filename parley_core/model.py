@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import enum
 import math
+import re
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, TypeVar
 
@@ -17,7 +18,24 @@ from attrs import field, frozen, validators
 from parley_core.errors import ModelError, PolicyError
 from parley_core.tables import Tabular
 
-_IDENTIFIER = validators.matches_re(r"[A-Za-z_][A-Za-z0-9_]*")
+
+def _suggest(name: str) -> str:
+    fixed = re.sub(r"\W+", "_", str(name)).strip("_") or "name"
+    return f"_{fixed}" if fixed[0].isdigit() else fixed
+
+
+def _identifier(instance: Any, attribute: attrs.Attribute, value: Any) -> None:
+    """A name PRISM and the run files can carry: letters, digits and underscores, not starting
+    with a digit (a :class:`ModelError` naming the field and a name that would do)."""
+    if not isinstance(value, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", value):
+        kind = type(instance).__name__.lower()
+        raise ModelError(
+            f"{kind} {attribute.name} {value!r} is not an identifier: use letters, digits and underscores, "
+            f"not starting with a digit (say {_suggest(value)!r})"
+        )
+
+
+_IDENTIFIER = _identifier
 _T = TypeVar("_T")
 
 

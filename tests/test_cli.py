@@ -254,3 +254,14 @@ def test_where_stderr_is_no_terminal_a_line_tells_how_far_a_stage_is(monkeypatch
         reporter.stage("branch and bound", 1000)
         reporter.advance(250)
     assert " of 1,000 after" not in out.getvalue()
+
+
+def test_version_and_the_case_argument_in_help():
+    import parley
+
+    result = invoke("--version")
+    assert result.exit_code == 0 and result.stdout.strip() == f"parley {parley.__version__}"
+    shown = invoke("run", "--help").stdout
+    assert "run [OPTIONS] {CASE}" in shown and "{case}" not in shown
+    assert "robot_grid, turtlebot, web_ids, tas" in shown
+    assert "are not counted" in invoke("exact", "--help").stdout  # what --time-limit covers

@@ -14,7 +14,7 @@ from parley_core.testing.conformance import ConformanceError, check_baselines, c
 @pytest.mark.slow
 def test_one_option_runs_the_shipped_suite_on_an_installed_case_study(pytester):
     result = pytester.runpytest_subprocess("--parley-case", "tas", "-p", "no:cacheprovider")
-    result.assert_outcomes(passed=4)
+    result.assert_outcomes(passed=5)
 
 
 @pytest.mark.slow
@@ -27,7 +27,7 @@ def test_one_class_runs_the_suite_in_a_plugins_own_tests(pytester):
             case_studies = ("web_ids",)
         """
     )
-    pytester.runpytest_subprocess("-p", "no:cacheprovider").assert_outcomes(passed=4)
+    pytester.runpytest_subprocess("-p", "no:cacheprovider").assert_outcomes(passed=5)
 
 
 def test_a_case_study_without_baselines_fails_the_suite(toy):

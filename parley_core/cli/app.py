@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import typer
 
 app = typer.Typer(
@@ -20,8 +22,21 @@ experiment_app = typer.Typer(
 app.add_typer(experiment_app, name="experiment")
 
 
+def _version(shown: bool) -> None:
+    if shown:
+        from parley_core import __version__
+
+        typer.echo(f"parley {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
-def _entry() -> None:
+def _entry(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True, help="Print parley's version and exit."),
+    ] = False,
+) -> None:
     """Synthesize uncertainty reduction controllers (URCs) with formal guarantees."""
     from parley_core.prism.program import quiet_storm
 

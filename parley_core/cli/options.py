@@ -52,7 +52,14 @@ ObserveOption = Annotated[
 ]
 JsonOption = Annotated[bool, typer.Option("--json", help="Print one JSON document to stdout and nothing else there.")]
 ForceOption = Annotated[bool, typer.Option(help="Replace the files of an existing --out directory.")]
-CaseArgument = Annotated[str, typer.Argument(help="Case study name (see `parley list`).")]
+CaseArgument = Annotated[
+    str,
+    typer.Argument(
+        metavar="CASE",
+        help="Case study: robot_grid, turtlebot, web_ids, tas, or an installed plugin's (`parley list` lists them).",
+        show_default=False,
+    ),
+]
 
 ALGORITHM = default("algorithm")
 AlgorithmOption = Annotated[

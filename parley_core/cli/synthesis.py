@@ -110,7 +110,11 @@ def exact_command(
     seed: SeedOption = SEED,
     time_limit: Annotated[
         float | None,
-        typer.Option("--time-limit", min=0.001, help="Stop branch and bound after this many seconds (default: none)."),
+        typer.Option(
+            "--time-limit",
+            min=0.001,
+            help="Stop branch and bound after this many seconds (default: none); building the model and quotient before it and verifying the front with Storm after it are not counted.",
+        ),
     ] = None,
     out: OutOption = None,
     force: ForceOption = False,

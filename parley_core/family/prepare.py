@@ -33,8 +33,9 @@ class Prepared:
 def make_family(system: SystemModel, *, prune: bool = False) -> Family:
     """Augment ``system``; with ``prune``, only at the observation valuations where some
     reachable state of some policy consults a service (found on the quotient MDP)."""
-    from parley_core.prism.properties import name_unnamed_rewards
+    from parley_core.prism.properties import check_objectives, name_unnamed_rewards
 
+    check_objectives(system)
     system = name_unnamed_rewards(system)
     family = augment(system)  # also checks the model before Storm builds its quotient
     if prune:

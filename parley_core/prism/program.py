@@ -1,15 +1,17 @@
 """Reading PRISM through stormpy's program API: parse, inspect, and splice rendered parts.
 
-Nothing here looks at PRISM text with regular expressions: programs are parsed by Storm,
+Nothing here reads PRISM text with regular expressions: programs are parsed by Storm,
 inspected through the API, and printed by Storm's own printer. :func:`splice` replaces the
 printed form of whole modules and constant declarations by new text and checks that each
-replaced part occurs exactly once.
+replaced part occurs exactly once. (Only an error message's hint, :func:`_undeclared`,
+looks for the words of a text that failed to parse.)
 """
 
 from __future__ import annotations
 
 import math
 import os
+import re
 import tempfile
 from collections.abc import Iterable, Mapping
 
@@ -49,7 +51,7 @@ def parse_program(text: str, *, origin: str = "model") -> PrismProgram:
         message = storm_message(exc)
         if "The input model is a CTMC" in message:  # Storm's parser refuses before parley can say it
             raise ModelError(f"{origin} is a CTMC but parley needs a DTMC; declare it with `dtmc`") from None
-        raise ModelError(f"{origin} does not parse: {message}") from None
+        raise ModelError(f"{origin} does not parse: {_hinted(_undeclared_at(text, message), message)}") from None
     finally:
         os.unlink(path)
 
@@ -61,11 +63,55 @@ def parse_properties(formulas: Iterable[str], program: PrismProgram, *, origin: 
         try:
             properties = stormpy.parse_properties(formula, program)
         except RuntimeError as exc:
-            raise ModelError(f"{origin} {formula!r} does not parse: {storm_message(exc)}") from None
+            hint = _undeclared(_words(formula, outside_quotes=True) - _KEYWORDS, str(program))
+            raise ModelError(f"{origin} {formula!r} does not parse: {_hinted(hint, storm_message(exc))}") from None
         if len(properties) != 1:
             raise ModelError(f"{origin} {formula!r} holds {len(properties)} properties; give exactly one")
         parsed.append(properties[0])
     return parsed
+
+
+_KEYWORDS = frozenset(
+    "A bool clock const ctmc C double dtmc E endinit endinvariant endmodule endobservables endrewards endsystem "
+    "false formula filter func F global G init invariant I int label max mdp min module X nondeterministic "
+    "observable observables of Pmax Pmin P pomdp popta probabilistic prob pta rate rewards Rmax Rmin R S "
+    "stochastic system true U W floor ceil round pow mod log deadlock".split()
+)
+"""PRISM's keywords and functions: never an undeclared name."""
+
+
+def _words(text: str, outside_quotes: bool = False) -> set[str]:
+    if outside_quotes:
+        text = "".join(text.split('"')[::2])  # labels are quoted
+    return set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", text))
+
+
+def _hinted(hint: str, message: str) -> str:
+    return f"{hint}; Storm says: {message}" if hint else message
+
+
+def _undeclared(names: set[str], model: str) -> str:
+    """The hint of a parse error: which of ``names`` the model's text never mentions (so
+    declares nowhere), as ``"'zz' is not declared in the model"``, or ""."""
+    missing = sorted(names - _words(model))
+    if not missing:
+        return ""
+    listed = ", ".join(repr(name) for name in missing)
+    return f"{listed} {'is' if len(missing) == 1 else 'are'} not declared in the model"
+
+
+def _undeclared_at(text: str, message: str) -> str:
+    """The hint of a program's parse error: the word at (else just before) Storm's error
+    position, if it occurs nowhere else in the text (used once, so declared nowhere)."""
+    where = re.search(r"at (\d+):(\d+)", message)
+    lines = text.splitlines()
+    if not where or not 0 < int(where[1]) <= len(lines):
+        return ""
+    column = int(where[2]) - 1
+    words = [m for m in re.finditer(r"[A-Za-z_][A-Za-z0-9_]*", lines[int(where[1]) - 1]) if m.start() <= column]
+    if not words or words[-1][0] in _KEYWORDS or len(re.findall(rf"\b{words[-1][0]}\b", text)) != 1:
+        return ""
+    return f"{words[-1][0]!r} (line {where[1]}) is not declared"
 
 
 def is_dtmc(program: PrismProgram) -> bool:

@@ -74,6 +74,27 @@ def reward_name(formula, program, ignore: Iterable[str] = ()) -> str | None:
     return structures[0] if len(structures) == 1 else None
 
 
+def check_objectives(system: SystemModel) -> None:
+    """Each objective parses on the system's model and names only labels and reward
+    structures it has; a :class:`ModelError` names the objective and what the model has
+    (Storm itself would only stop when building, or say nothing of a missing label)."""
+    program = prism.parse_program(system.prism, origin=f"the {system.name} model")
+    labels = [label.name for label in program.labels]
+    for objective in system.objectives:
+        origin = f"objective {objective.name!r}"
+        (prop,) = prism.parse_properties([objective.formula], program, origin=origin)
+        prism.check_property_references(prop, program, origin=origin)
+        printed = str(prop.get_raw_formula().subformula).split('"')[1::2]  # Storm prints labels quoted
+        missing = sorted({name for name in printed if name not in {"init", "deadlock"} and name not in labels})
+        if missing:
+            quoted = ", ".join(f'"{name}"' for name in missing)
+            have = ", ".join(f'"{name}"' for name in labels) or "none"
+            raise ModelError(
+                f"{origin} ({objective.formula}) uses label {quoted}, which the {system.name} model lacks; "
+                f"its labels: {have}"
+            )
+
+
 def name_unnamed_rewards(system: SystemModel) -> SystemModel:
     """The system with every objective ``R=? [...]`` that names no reward structure, in a
     model with several, naming the first one, as PRISM does (Storm refuses such a property

@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+import attrs
 import numpy as np
 
 from parley_core import metrics
@@ -34,8 +35,31 @@ class ConformanceError(AssertionError):
 
 
 def _expect(condition: Any, message: str) -> None:
+    __tracebackhide__ = True  # pytest shows the message, not this frame
     if not condition:
         raise ConformanceError(message)
+
+
+def check_options(case: CaseStudy) -> None:
+    """The options class is a frozen attrs class (options are values: a run's options cannot
+    change under it) and every option has a help text (``parley_core.option(default, help)``),
+    which ``parley options`` and ``--help`` show."""
+    __tracebackhide__ = True
+    defaults = case.options_type()
+    try:
+        defaults.parley_probe = 1
+    except attrs.exceptions.FrozenInstanceError:
+        pass
+    except AttributeError:  # a slotted class that is not frozen
+        _expect(False, f"{case.name}: the options class {case.options_type.__name__} is not frozen; use @frozen")
+    else:
+        _expect(False, f"{case.name}: the options class {case.options_type.__name__} is not frozen; use @frozen")
+    unexplained = [f.name for f in case.option_fields() if not str(f.metadata.get("help", "")).strip()]
+    _expect(
+        not unexplained,
+        f"{case.name}: option(s) {', '.join(unexplained)} have no help text; declare them as "
+        "parley_core.option(default, 'what it is')",
+    )
 
 
 def prepare_quick(case: CaseStudy, options: dict[str, str] | None = None) -> Prepared:
@@ -145,6 +169,8 @@ def check_policy_map(prepared: Prepared) -> None:
 
 def check_case_study(case: CaseStudy, directory: Path, options: dict[str, str] | None = None) -> None:
     """Every check, on one case study (with its ``quick`` options unless ``options``)."""
+    __tracebackhide__ = True
+    check_options(case)
     prepared = prepare_quick(case, options)
     check_model(prepared)
     check_policy_map(prepared)

@@ -15,18 +15,33 @@ the collection).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import pytest
 
+from parley_core.errors import ParleyError
 from parley_core.testing import case_study
 from parley_core.testing.conformance import (
+    ConformanceError,
     check_baselines,
     check_model,
+    check_options,
     check_policy_map,
     check_search,
     prepare_quick,
 )
+
+
+def _checked(check: Callable[..., Any], *args: Any) -> Any:
+    """``check(*args)``; a contract failure or a parley error fails the test with its
+    one-line message alone, not parley's frames."""
+    __tracebackhide__ = True
+    try:
+        return check(*args)
+    except (ConformanceError, ParleyError) as error:
+        failure = f"{type(error).__name__}: {error}"
+    pytest.fail(failure, pytrace=False)  # outside the handler: no chained traceback
 
 
 class ConformanceSuite:
@@ -51,19 +66,22 @@ class ConformanceSuite:
     @pytest.fixture(scope="class")
     @classmethod
     def parley_prepared(cls, parley_case_name: str):
-        return prepare_quick(case_study(parley_case_name), cls.options)
+        return _checked(prepare_quick, _checked(case_study, parley_case_name), cls.options)
+
+    def test_options_are_frozen_and_explained(self, parley_case_name: str) -> None:
+        _checked(check_options, _checked(case_study, parley_case_name))
 
     def test_model_parses_and_names_what_exists(self, parley_prepared) -> None:
-        check_model(parley_prepared)
+        _checked(check_model, parley_prepared)
 
     def test_policy_map_fits_the_observation(self, parley_prepared) -> None:
-        check_policy_map(parley_prepared)
+        _checked(check_policy_map, parley_prepared)
 
     def test_baselines_build_and_check(self, parley_prepared) -> None:
-        check_baselines(parley_prepared)
+        _checked(check_baselines, parley_prepared)
 
     def test_tiny_search_gives_a_front_that_storm_confirms(self, parley_prepared, tmp_path) -> None:
-        check_search(parley_prepared, tmp_path)
+        _checked(check_search, parley_prepared, tmp_path)
 
 
 class TestInstalledCaseStudies(ConformanceSuite):
