@@ -32,6 +32,96 @@ def nondominated(values: np.ndarray, directions: Sequence[Direction]) -> np.ndar
     return np.asarray(moocore.is_nondominated(values, maximise=_maximize(directions), keep_weakly=False))
 
 
+TIE_TOLERANCE = 1e-9
+"""Values closer than this (times the value's size, at least 1) are ties: the verification
+tolerance, within which the search's evaluator and Storm may differ (:data:`parley_core.verify.TOLERANCE`)."""
+
+
+def _maximised(values: np.ndarray, directions: Sequence[Direction]) -> np.ndarray:
+    """Values to maximise, an infinitely bad value clamped to :data:`~parley_core.boxes.FLOOR`."""
+    signs = np.where(_maximize(directions), 1.0, -1.0)
+    return np.maximum(np.asarray(values, dtype=float).reshape(-1, len(directions)) * signs, FLOOR)
+
+
+def tie_scale(values: np.ndarray, tolerance: float = TIE_TOLERANCE) -> np.ndarray:
+    """Per objective, how close two of these values must be to tie: ``tolerance`` times the
+    objective's largest finite magnitude here (at least 1). One width per objective keeps
+    the tie relation the same for every pair (a front's costs of 20 and of 100 tie at the
+    same distance)."""
+    values = np.asarray(values, dtype=float)
+    finite = np.where(np.isfinite(values), np.abs(values), 0.0)
+    return tolerance * np.maximum(1.0, finite.max(axis=0) if len(values) else 1.0)
+
+
+def _near(part: np.ndarray, others: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """[len(part), len(others)]: within ``scale`` of each other in every objective."""
+    return (np.abs(part[:, None, :] - others[None, :, :]) <= scale).all(axis=2)
+
+
+def tolerant_front(values: np.ndarray, directions: Sequence[Direction], tolerance: float = TIE_TOLERANCE) -> np.ndarray:
+    """Boolean mask of the points on the front once values within the tolerance
+    (:func:`tie_scale`) are ties: a point is off it when a point on it is no worse in every
+    objective (up to a tie) and better beyond a tie in one. Every point of a tie is kept
+    (:func:`tie_points` groups them); a point that differs from another by float noise only,
+    which exact comparison would call dominated or keep as a point of its own, is a tie. Points
+    are decided best first (by their sum in tolerance units), so that with two objectives a
+    point's dominators are decided before it and every point left off is dominated by one
+    kept. NaN rows are never on it."""
+    values = np.asarray(values, dtype=float).reshape(-1, len(directions))
+    keep = np.zeros(len(values), dtype=bool)
+    rows = np.flatnonzero(~np.isnan(values).any(axis=1))
+    if not len(rows):
+        return keep
+    points = _maximised(values[rows], directions)
+    scale = tie_scale(values[rows], tolerance)
+    exact = points[np.asarray(moocore.is_nondominated(points, maximise=True, keep_weakly=True))]
+    # a point off the exact front can only be on this one as a tie of an exact front point
+    close = np.zeros(len(points), dtype=bool)
+    for lo in range(0, len(points), 1024):
+        close[lo : lo + 1024] = _near(points[lo : lo + 1024], exact, scale).any(axis=1)
+    candidates = np.flatnonzero(close)
+    units = np.where(points[candidates] > FLOOR, points[candidates], 0.0) / scale
+    order = candidates[np.lexsort((np.arange(len(candidates)), -units.sum(axis=1)))]
+    kept: list[int] = []
+    for i in order:
+        if kept:
+            others = points[kept]
+            no_worse = (others >= points[i] - scale).all(axis=1)
+            if (no_worse & (others > points[i] + scale).any(axis=1)).any():
+                continue
+        kept.append(int(i))
+    keep[rows[kept]] = True
+    return keep
+
+
+def tie_points(values: np.ndarray, directions: Sequence[Direction], tolerance: float = TIE_TOLERANCE) -> np.ndarray:
+    """The point (1, 2, ...) of each row, in order of first appearance: rows within the
+    tolerance (:func:`tie_scale`) of each other in every objective, directly or through
+    other rows, are one point (so no two points of a front are ties)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    points = _maximised(values, directions)
+    if not len(points):
+        return np.zeros(0, dtype=np.int64)
+    scale = tie_scale(values, tolerance)
+    pairs = [np.argwhere(_near(points[lo : lo + 1024], points, scale)) + [lo, 0] for lo in range(0, len(points), 1024)]
+    edges = np.vstack(pairs)
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(points), len(points)))
+    _, labels = connected_components(graph, directed=False)
+    first: dict[int, int] = {}
+    return np.array([first.setdefault(int(label), len(first) + 1) for label in labels], dtype=np.int64)
+
+
+def distinct_front(values: np.ndarray, directions: Sequence[Direction], tolerance: float = TIE_TOLERANCE) -> np.ndarray:
+    """The values of :func:`tolerant_front`, one row per point (the first of each tie): what
+    the quality measures that count points (spread, gaps) measure."""
+    values = np.asarray(values, dtype=float).reshape(-1, len(directions))
+    front = values[tolerant_front(values, directions, tolerance)]
+    _, first = np.unique(tie_points(front, directions, tolerance), return_index=True)
+    return front[np.sort(first)]
+
+
 def front_candidates(values: np.ndarray) -> np.ndarray:
     """Which rows may be on a front: an infinite value (an expected cost of a policy that
     may never reach its goal, say) keeps a row off unless every row is infinite in that
@@ -161,7 +251,7 @@ def front_disagreements(
     found: np.ndarray, values: np.ndarray, directions: Sequence[Direction], tolerance: float = 1e-9
 ) -> tuple[np.ndarray, np.ndarray]:
     """How ``found`` fails to be the Pareto front of ``values`` up to ties within
-    ``tolerance`` (of each value's size, at least 1): the values no found value weakly
+    ``tolerance`` (:func:`tie_scale` of both sets): the values no found value weakly
     dominates once given the tolerance, and the found values that are not (to the tolerance)
     one of the float-exact front's. Both empty: the same front, as branch and bound promises
     it. Counting the points of two fronts instead counts ties at the level of float noise (a
@@ -171,11 +261,12 @@ def front_disagreements(
     found = np.asarray(found, dtype=float).reshape(-1, values.shape[1])
     values = values[~np.isnan(values).any(axis=1)]
     exact = values[nondominated(values, directions)]
-    signs = np.where(_maximize(directions), 1.0, -1.0)  # maximised, infinitely bad clamped
-    mine, theirs, best = (np.maximum(v * signs, FLOOR) for v in (found, values, exact))
+    mine, theirs, best = (_maximised(v, directions) for v in (found, values, exact))
+
+    scale = tie_scale(np.vstack([values, found]), tolerance)
 
     def slack(points: np.ndarray) -> np.ndarray:
-        return tolerance * np.maximum(1.0, np.abs(np.where(np.isfinite(points), points, 0.0)))
+        return np.broadcast_to(scale, points.shape)
 
     covered = np.zeros(len(theirs), dtype=bool)
     member = np.zeros(len(mine), dtype=bool)

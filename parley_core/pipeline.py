@@ -254,7 +254,7 @@ class _Steps:
         feasible &= metrics.front_candidates(values)
         if not feasible.any():
             raise SearchError("every evaluated policy has a NaN objective value; check the objectives' formulas")
-        mask = metrics.nondominated(values[feasible], self.directions)
+        mask = metrics.tolerant_front(values[feasible], self.directions)
         return policies[feasible][mask], values[feasible][mask]
 
     def verify(
@@ -312,7 +312,7 @@ class _Steps:
         of the baselines and of the front."""
         values = checked.values
         keep = (
-            metrics.nondominated(values, self.directions)
+            metrics.tolerant_front(values, self.directions)
             & meets(values, self.names, self.settings.constraints)
             & metrics.front_candidates(values)
         )

@@ -20,11 +20,13 @@ import numpy as np
 from attrs import frozen
 
 from parley_core.errors import EvaluatorDisagreement, ModelError, OptionError
+from parley_core.metrics import TIE_TOLERANCE
 from parley_core.model import Family
 from parley_core.progress import NullReporter, Reporter
 
-TOLERANCE = 1e-9
-"""How far the search's evaluator may be from Storm: 1e-9 times the value's size (at least 1)."""
+TOLERANCE = TIE_TOLERANCE
+"""How far the search's evaluator may be from Storm: 1e-9 times the value's size (at least
+1); values of a front this close are ties (:func:`parley_core.metrics.tie_points`)."""
 
 
 class VerifyPath(enum.Enum):

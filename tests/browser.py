@@ -109,8 +109,21 @@ class Page:
 
     def click_point(self, plot: str, renderer: str, index: int) -> None:
         x, y = self.page.evaluate(POINT, [plot, renderer, index])
+        self.page.mouse.move(x, y)
+        self.page.wait_for_timeout(100)
         self.page.mouse.click(x, y)
-        self.page.wait_for_timeout(200)
+        self.page.wait_for_timeout(500)  # two taps closer in time are one double tap to Bokeh
+
+    def table_cells(self, name: str) -> list[list[str]]:
+        """The rows a DataTable has drawn (its DOM's cell texts, as the reader sees them)."""
+        return self.page.evaluate(
+            "(name) => { const find = " + FIND_VIEW + "; const view = find(name);"
+            " const root = view.shadow_el || view.el;"
+            " const rows = Array.from(root.querySelectorAll('.slick-row'));"
+            " rows.sort((a, b) => parseFloat(a.style.top) - parseFloat(b.style.top));"
+            " return rows.map((r) => Array.from(r.querySelectorAll('.slick-cell')).map((c) => c.textContent)); }",
+            name,
+        )
 
     def text(self, name: str) -> str:
         return self.page.evaluate("(name) => Bokeh.documents[0].get_model_by_name(name).text", name)

@@ -79,3 +79,32 @@ def small_robot():
     family = make_family("robot_grid", ["size=5", "seed=1", "max_interval=4", "horizon=45"])
     with QuotientEvaluator(family, workers=1) as evaluator:
         yield family, evaluator
+
+
+def assert_points_are_not_ties(run_dir: Path) -> int:
+    """front.csv's ``point`` column groups exactly the ties: two policies of different
+    points are never within the verification tolerance of each other, and no policy is
+    dominated by more than it. Returns the number of points (as summary.json has it)."""
+    import csv
+    import json
+
+    import numpy as np
+
+    from parley_core import metrics
+
+    summary = json.loads((run_dir / "summary.json").read_text())
+    names = [o["name"] for o in summary["objectives"]]
+    directions = [Direction(o["direction"]) for o in summary["objectives"]]
+    with open(run_dir / "front.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert rows and list(rows[0])[-1] == "point"
+    values = np.array([[float(r[n]) for n in names] for r in rows])
+    points = np.array([int(r["point"]) for r in rows])
+    assert metrics.tolerant_front(values, directions).all()
+    firsts = {p: values[points == p][0] for p in set(points)}
+    for p, value in firsts.items():
+        for q, other in firsts.items():
+            slack = metrics.TIE_TOLERANCE * np.maximum(1.0, np.maximum(np.abs(value), np.abs(other)))
+            assert p == q or not (np.abs(value - other) <= slack).all(), (p, q, value, other)
+    assert summary["front"]["points"] == len(firsts) == points.max()
+    return len(firsts)

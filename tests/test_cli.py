@@ -8,10 +8,15 @@ import json
 import pytest
 from typer.testing import CliRunner
 
+from conftest import assert_points_are_not_ties
 from parley_core.cli import app
 
 runner = CliRunner()
 QUICK = ["--set", "size=5", "--set", "seed=1", "--set", "max_interval=4", "--set", "horizon=45", "--workers", "1"]
+
+
+def summary_size(run_dir) -> int:
+    return json.loads((run_dir / "summary.json").read_text())["front"]["size"]
 
 
 def invoke(*args: str):
@@ -103,7 +108,8 @@ def test_run_writes_the_run_directory_and_is_reproducible(tmp_path):
     assert (first / "policies.csv").read_text() == (second / "policies.csv").read_text()
     with open(first / "front.csv") as handle:
         header = next(csv.reader(handle))
-    assert header == ["policy", "success", "cost"]
+    assert header == ["policy", "success", "cost", "point"]
+    assert assert_points_are_not_ties(first) <= summary_size(first)
     with open(first / "policies.csv") as handle:
         header = next(csv.reader(handle))
     assert header[:3] == ["policy", "c_0_0", "c_0_1"] and len(header) == 26

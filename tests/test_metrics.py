@@ -81,3 +81,30 @@ def test_front_disagreements_ignore_noise_ties_and_catch_real_differences():
     better = np.vstack([values, [16.5 * (1 - 1e-8), 1.0]])
     missed, _ = metrics.front_disagreements(values[[0]], better, directions)
     assert len(missed) == 1
+
+
+def test_values_within_the_verification_tolerance_are_ties_on_the_front():
+    # robot_grid's p001/p002 of the default run: 4e-13 apart in success, 2e-11 in cost
+    values = np.array(
+        [
+            [0.6114549777711235, 19.548105901615955],
+            [0.6114549777710948, 19.54810590161634],  # a tie of the first (it is exactly dominated)
+            [0.6114549777711235 + 1e-13, 19.6],  # better success by noise only, worse cost: dominated
+            [0.7, 25.0],
+            [0.7 - 1e-8, 24.0],  # 1e-8 is beyond the tolerance: a real trade-off
+            [np.nan, 1.0],
+        ]
+    )
+    keep = metrics.tolerant_front(values, MAX_MIN)
+    assert keep.tolist() == [True, True, False, True, True, False]
+    assert metrics.nondominated(values[:5], MAX_MIN).tolist() == [True, False, True, True, True]  # exact: no ties
+    assert metrics.tie_points(values[keep], MAX_MIN).tolist() == [1, 1, 2, 3]
+    assert metrics.distinct_front(values, MAX_MIN).tolist() == [values[0].tolist(), [0.7, 25.0], values[4].tolist()]
+
+
+def test_ties_chain_into_one_point_and_scale_with_the_value():
+    step = 0.9e-9 * 1000  # within the tolerance of values near 1000, not of values near 1
+    chained = np.array([[1000.0, 1.0], [1000.0 + step, 1.0], [1000.0 + 2 * step, 1.0]])
+    assert metrics.tie_points(chained, [Direction.MIN, Direction.MIN]).tolist() == [1, 1, 1]
+    small = np.array([[1.0, 1.0], [1.0 + step, 1.0]])
+    assert metrics.tie_points(small, [Direction.MIN, Direction.MIN]).tolist() == [1, 2]

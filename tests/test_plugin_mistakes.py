@@ -8,8 +8,7 @@ import subprocess
 import sys
 
 import pytest
-
-from tests.test_plugins import _install_example, _parley
+from test_plugins import _install_example, _parley
 
 RUN = ("run", "thermostat", "--set", "rounds=3", "--population", "4", "--generations", "1", "--workers", "1")
 

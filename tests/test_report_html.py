@@ -12,7 +12,7 @@ import re
 import pytest
 
 import parley
-from tests.browser import ARGS, Page, require_browser
+from tests.browser import ARGS, POINT, Page, require_browser
 
 SMALL = {"population": 10, "generations": 2, "bound": "ideal", "progress": False}
 CASES = {
@@ -49,30 +49,42 @@ def test_run_report_in_a_browser(case, browser, tmp_path):
     report = run.directory / "report.html"
     assert report.is_file() and offline(report.read_text())
     rows = front_rows(run.directory)
+    firsts = [next(r for r in rows if r["point"] == point) for point in dict.fromkeys(r["point"] for r in rows)]
     page = Page(browser, report)
     assert page.problems == []
-    assert page.data("front-source", "policy") == [r["policy"] for r in rows]
-    assert page.rendered_points("front-plot", "front-points") == len(rows)
+    assert page.data("front-source", "policy") == [r["policy"] for r in firsts]  # one point per tie
+    assert page.rendered_points("front-plot", "front-points") == len(firsts)
 
-    # a click on a policy other than the knee shows it: the heading and its decision table
-    target = next(k for k, r in enumerate(rows) if r["policy"] != run.summary.selected)
-    name = rows[target]["policy"]
-    assert name not in page.text("policy-heading")
-    page.click_point("front-plot", "front-points", target)
-    assert f"policy {name}" in page.text("policy-heading")
-    table = {c: page.data("policy-table", c) for c in [s.constant for s in run.files.services]}
-    policy = run.policy(name)
-    row_of = {}
-    for decision, value in zip(run.files.decisions, policy.values):
-        row_of[(decision.service.constant, decision.valuation)] = value
+    # clicks on two points in turn, neither the knee: the heading and the rows the table draws
+    # (its cells' texts) are each time that policy's decisions as policies.csv has them
+    others = [k for k, r in enumerate(firsts) if r["policy"] != run.summary.selected]
+    targets = others[:2] if len(others) >= 2 else [*others, 0]
+    assert len(set(targets)) == 2
     observed = list(run.files.observation)
-    valuations = list(zip(*(page.data("policy-table", v) for v in observed))) if observed else [()]
-    for (constant, valuation), value in row_of.items():
-        assert table[constant][valuations.index(tuple(valuation))] == value
+    constants = [s.constant for s in run.files.services]
+    for target in targets:
+        name = firsts[target]["policy"]
+        page.click_point("front-plot", "front-points", target)
+        assert f"policy {name}" in page.text("policy-heading")
+        expected: dict[tuple[int, ...], dict[str, int]] = {}
+        for decision, value in zip(run.files.decisions, run.policy(name).values):
+            expected.setdefault(tuple(decision.valuation), {})[decision.service.constant] = value
+        drawn = page.table_cells("decision-table")
+        assert drawn, "the decision table draws no rows"
+        for cells in drawn:
+            valuation = tuple(int(v) for v in cells[: len(observed)])
+            shown = dict(zip(constants, cells[len(observed) :]))
+            assert {c: int(shown[c]) for c in expected[valuation]} == expected[valuation], (name, valuation)
+
+    # hovering a point names that one point (the nearest), not every point under the pointer
+    x, y = page.page.evaluate(POINT, ["front-plot", "front-points", targets[0]])
+    page.page.mouse.move(x, y)
+    page.page.wait_for_timeout(200)
+    assert page.text("hover-readout").startswith(f"<b>{firsts[targets[0]]['policy']}</b>")
 
     # the requirement slider on the first objective fades what misses it
     objective = run.objectives[0]
-    values = sorted(float(r[objective.name]) for r in rows)
+    values = sorted(float(r[objective.name]) for r in firsts)
     middle = values[len(values) // 2]
     page.page.evaluate(
         "([name, value]) => { Bokeh.documents[0].get_model_by_name(name).value = value; }",
@@ -80,9 +92,9 @@ def test_run_report_in_a_browser(case, browser, tmp_path):
     )
     page.page.wait_for_timeout(100)
     meets = sum(1 for v in values if (v >= middle if objective.direction.value == "max" else v <= middle))
-    assert page.text("requirement-count").startswith(f"{meets} of {len(rows)} ")
+    assert page.text("requirement-count").startswith(f"{meets} of {len(firsts)} points")
     faded = page.data("front-source", "alpha").count(0.12)
-    assert faded == len(rows) - meets
+    assert faded == len(firsts) - meets
     if case in ("robot_grid", "turtlebot"):  # the plugin's map: obstacles and marks where map.json puts them
         found = json.loads((run.directory / "map.json").read_text())
         blocked = found["blocked"]
@@ -101,6 +113,10 @@ def test_run_report_in_a_browser(case, browser, tmp_path):
             )
             assert shown == [h == int(option) for h in headings]
     page.screenshot(f"report-{case}.png")
+    page.page.set_viewport_size({"width": 1280, "height": 800})  # a laptop's screen: nothing cut off sideways
+    page.page.wait_for_timeout(200)
+    assert page.page.evaluate("() => document.documentElement.scrollWidth") <= 1280
+    page.screenshot(f"report-{case}-1280x800.png")
     assert page.problems == []
 
 

@@ -255,12 +255,22 @@ def _print_warnings(console: Console, out: Path) -> None:
 
 
 def _print_sets(console: Console, result: RunResult) -> None:
-    """The front and the baseline, as tables."""
+    """The front (a row per point) and the baseline, as tables."""
+    import numpy as np
+
+    from parley_core import metrics
+
     family = result.family
     constants = [s.constant for s in family.services]
     robust = result.scenarios
     checked = f"worst case over {len(robust)} scenarios, each checked by Storm" if robust else "values checked by Storm"
-    console.print(front_table(f"Pareto front: {len(result.front)} policies, {checked}", result.front))
+    directions = [o.direction for o in family.objectives]
+    points = metrics.tie_points(np.array(result.front.values), directions)
+    count = f"{len(result.front)} policies at {points.max() if len(points) else 0} points"
+    if len(points) and points.max() < len(points):
+        tolerance = f"{metrics.TIE_TOLERANCE:.0e}".replace("e-0", "e-")
+        count += f" (policies within a relative {tolerance} of each other are ties and share one)"
+    console.print(front_table(f"Pareto front: {count}, {checked}", result.front, points=points))
     console.print(
         front_table("Baseline", result.baseline, {c: [b.values[c] for b in family.baselines] for c in constants})
     )

@@ -301,7 +301,7 @@ def verify_record(case_name: str, record: RunRecord) -> RunRecord:
     policies = np.array([p.values for p in record.front.policies], dtype=np.int64).reshape(-1, len(family.decisions))
     searched = record.values()[0]
     verification, checked = check_with_storm(family, policies, searched, workers=1)
-    keep = metrics.nondominated(checked, [o.direction for o in record.objectives])
+    keep = metrics.tolerant_front(checked, [o.direction for o in record.objectives])
     front = front_from_json(record.objectives, {"policies": policies[keep].tolist(), "values": checked[keep].tolist()})
     return evolve(record, front=front, summary={**record.summary, "verification": verification.to_json()})
 

@@ -86,15 +86,12 @@ def in_box(values: np.ndarray, directions: Sequence[Direction], setting: Setting
 
 
 def _spread(values: np.ndarray, directions, setting: Setting, ideal: np.ndarray, extremes: np.ndarray | None) -> float:
-    points = in_box(values, directions, setting)
-    points = points[metrics.nondominated(points, directions)] if len(points) else points
+    points = metrics.distinct_front(in_box(values, directions, setting), directions)
     return metrics.spread(points, directions, bounds=(ideal, np.array(setting)), extremes=extremes)
 
 
 def _gap(values: np.ndarray, directions, setting: Setting) -> float:
-    points = in_box(values, directions, setting)
-    points = points[metrics.nondominated(points, directions)] if len(points) else points
-    return metrics.mean_gap(points, directions)
+    return metrics.mean_gap(metrics.distinct_front(in_box(values, directions, setting), directions), directions)
 
 
 def _igd(values: np.ndarray, directions, setting: Setting, ideal: np.ndarray, reference: np.ndarray) -> float:
@@ -138,7 +135,7 @@ def analyze(
         ideal = as_min.min(axis=0) * np.array([d.sign for d in directions])
         for setting in settings:
             box_all = in_box(everything, directions, setting)
-            box_front = box_all[metrics.nondominated(box_all, directions)] if len(box_all) else box_all
+            box_front = metrics.distinct_front(box_all, directions)
             extremes = None
             if len(box_front) >= 2:
                 order = np.argsort(box_front[:, 0] * directions[0].sign)

@@ -21,7 +21,7 @@ import numpy as np
 
 from parley_core.model import Direction
 from parley_core.rundir.read import RunDirectory
-from parley_core.views.bokeh_scripts import FILTER, SHOW_POLICY
+from parley_core.views.bokeh_scripts import FILTER, NEAREST, SHOW_POLICY
 from parley_core.views.stable import stable_ids
 
 REPORT = "report.html"
@@ -53,49 +53,98 @@ def policy_table(run: RunDirectory) -> tuple[dict[str, list[Any]], list[int], li
     return columns, row_of, constant_of
 
 
+def _front_source(run: RunDirectory, front: np.ndarray, i: int, j: int) -> tuple[dict[str, list[Any]], list[int]]:
+    """The plot's points, one per tie (:func:`parley_core.metrics.tie_points`): the first
+    policy of each, how many others tie with it and their names; and each point's first row."""
+    from parley_core import metrics
+
+    names = [o.name for o in run.objectives]
+    ties = metrics.tie_points(front, [o.direction for o in run.objectives])
+    firsts = [int(np.flatnonzero(ties == t)[0]) for t in range(1, int(ties.max(initial=0)) + 1)]
+    policies = [p.name for p in run.front.policies]
+    members = [[policies[r] for r in np.flatnonzero(ties == ties[f])] for f in firsts]
+    shown = front[firsts] if firsts else front[:0]
+    data: dict[str, list[Any]] = {
+        "policy": [policies[f] for f in firsts],
+        "ties": [len(m) - 1 for m in members],
+        "others": [", ".join(m[1:6]) + (" ..." if len(m) > 6 else "") for m in members],
+        "x": _finite(shown[:, i]),
+        "y": _finite(shown[:, j]) if len(names) > 1 else [0.0] * len(shown),
+        "alpha": [1.0] * len(shown),
+    }
+    for k, name in enumerate(names):
+        data[name] = _finite(shown[:, k])
+    return data, firsts
+
+
+def _notes(run: RunDirectory, i: int, j: int, coloured: int | None) -> str:
+    """What the plot leaves out: objectives beyond its axes and colour, and the bound's form."""
+    names = [o.name for o in run.objectives]
+    notes = []
+    if coloured is not None:
+        notes.append(f"colour: {names[coloured]}")
+    left = [n for k, n in enumerate(names) if k not in (i, j, coloured)]
+    if left:
+        notes.append(f"not shown: {', '.join(left)} (front.csv has every objective)")
+    if run.optimality is not None and len(names) > 2:
+        notes.append(
+            f"the certified bound over {len(names)} objectives is drawn as its {len(run.optimality.points)} "
+            "points' outline in the two shown; with three or more objectives it may be only an ideal point"
+        )
+    return "; ".join(notes)
+
+
 def render(run: RunDirectory) -> str:
     """The page's HTML (self-contained)."""
     from bokeh.embed import file_html
     from bokeh.layouts import column, row
     from bokeh.models import (
         BoxAnnotation,
+        ColorBar,
         ColumnDataSource,
         CustomJS,
         DataTable,
         Div,
         HoverTool,
+        LinearColorMapper,
+        Scatter,
         Slider,
         TableColumn,
         TapTool,
     )
+    from bokeh.palettes import Viridis256
     from bokeh.plotting import figure
     from bokeh.resources import INLINE
 
     objectives = run.objectives
     names = [o.name for o in objectives]
     i, j = _axes(run)
-    front = np.array(run.front.values, dtype=float).reshape(-1, len(names))
+    all_values = np.array(run.front.values, dtype=float).reshape(-1, len(names))
     base = np.array(run.baseline.values, dtype=float).reshape(-1, len(names))
-    data: dict[str, list[Any]] = {
-        "policy": [p.name for p in run.front.policies],
-        "x": _finite(front[:, i]),
-        "y": _finite(front[:, j]) if len(names) > 1 else [0.0] * len(front),
-        "alpha": [1.0] * len(front),
-    }
-    for k, name in enumerate(names):
-        data[name] = _finite(front[:, k])
+    data, firsts = _front_source(run, all_values, i, j)
+    front = all_values[firsts] if firsts else all_values[:0]
     source = ColumnDataSource(data, name="front-source")
     tooltips = [("policy", "@policy")] + [(n, f"@{{{n}}}{{0.[0000]}}") for n in names]
-    title = f"{run.case_study}: {len(front)} Storm-verified policies (hover: values; click: the policy)"
+    title = f"{run.case_study}: {len(front)} points of {len(all_values)} Storm-verified policies"
+    width, height = 600, 440
     plot = figure(
-        width=640,
-        height=460,
+        width=width,
+        height=height,
         title=title,
         tools="pan,wheel_zoom,box_zoom,reset,save",
         x_axis_label=f"{names[i]} ({objectives[i].direction.value})",
         y_axis_label=f"{names[j]} ({objectives[j].direction.value})" if len(names) > 1 else "",
         name="front-plot",
     )
+    coloured = next((k for k in range(len(names)) if k not in (i, j)), None)
+    colour: Any = "#1f77b4"
+    if coloured is not None:
+        finite = front[:, coloured][np.isfinite(front[:, coloured])]
+        low, high = (float(finite.min()), float(finite.max())) if len(finite) else (0.0, 1.0)
+        palette = Viridis256 if objectives[coloured].direction is Direction.MAX else Viridis256[::-1]
+        mapper = LinearColorMapper(palette=palette, low=low, high=high if high > low else low + 1e-9)
+        colour = {"field": names[coloured], "transform": mapper}
+        plot.add_layout(ColorBar(color_mapper=mapper, title=names[coloured], width=10), "right")
     points = plot.scatter(
         "x",
         "y",
@@ -103,11 +152,52 @@ def render(run: RunDirectory) -> str:
         size=8,
         fill_alpha="alpha",
         line_alpha="alpha",
-        color="#1f77b4",
+        color=colour,
         name="front-points",
-        legend_label=f"parley front ({len(front)})",
+        legend_label=f"parley front ({len(front)} points)",
     )
-    plot.add_tools(HoverTool(renderers=[points], tooltips=tooltips), TapTool(renderers=[points]))
+    # a click marks the chosen point and leaves the others as they are (faded or not by the
+    # requirements), instead of fading everything else as well
+    points.selection_glyph = Scatter(size=13, fill_color=colour, line_color="black", line_width=2)
+    points.nonselection_glyph = None
+    ring = ColumnDataSource({"x": [], "y": []}, name="nearest-source")
+    plot.scatter("x", "y", source=ring, size=15, fill_color=None, line_color="black", line_width=1.5, name="nearest")
+    readout = Div(
+        text="hover: the nearest point's values appear here; click: its decisions on the right",
+        name="hover-readout",
+        width=width,
+    )
+    nearest = CustomJS(
+        args={
+            "source": source,
+            "ring": ring,
+            "readout": readout,
+            "names": names,
+            "xr": plot.x_range,
+            "yr": plot.y_range,
+            "width": width,
+            "height": height,
+        },
+        code=NEAREST,
+    )
+    plot.add_tools(HoverTool(renderers=[points], tooltips=None, callback=nearest), TapTool(renderers=[points]))
+    knee = run.policy(run.summary.selected)
+    at = [
+        k
+        for k, f in enumerate(firsts)
+        if np.array_equal(all_values[f], all_values[[q.name for q in run.front.policies].index(knee.name)])
+    ]
+    if at:
+        plot.scatter(
+            [data["x"][at[0]]],
+            [data["y"][at[0]]],
+            marker="star",
+            size=17,
+            fill_color="#ff7f0e",
+            line_color="black",
+            name="knee-point",
+            legend_label=f"knee ({knee.name}, the selected policy)",
+        )
     if len(base):
         baseline = ColumnDataSource(
             {
@@ -147,9 +237,11 @@ def render(run: RunDirectory) -> str:
     plot.legend.location = "bottom_right"
     plot.legend.click_policy = "hide"
 
-    box = BoxAnnotation(fill_alpha=0.08, fill_color="#ff7f0e", line_color="#ff7f0e", name="requirement-box")
+    box = BoxAnnotation(
+        fill_alpha=0.08, fill_color="#ff7f0e", line_color="#ff7f0e", level="underlay", name="requirement-box"
+    )
     plot.add_layout(box)
-    counter = Div(text=f"{len(front)} of {len(front)} policies meet the requirements", name="requirement-count")
+    counter = Div(text=f"{len(front)} of {len(front)} points meet the requirements", name="requirement-count")
     sliders = []
     for k, objective in enumerate(objectives):
         column_values = front[:, k][np.isfinite(front[:, k])]
@@ -186,7 +278,6 @@ def render(run: RunDirectory) -> str:
         slider.js_on_change("value", filter_code)
 
     columns, row_of, constant_of = policy_table(run)
-    knee = run.policy(run.summary.selected)
     for d, value in enumerate(knee.values):  # the page opens on the knee policy
         columns[constant_of[d]][row_of[d]] = int(value)
     table_source = ColumnDataSource(columns, name="policy-table")
@@ -209,21 +300,24 @@ def render(run: RunDirectory) -> str:
 
     views += grids(run, table_source, columns)
     views.append(table)
-    source.selected.js_on_change(
-        "indices",
-        CustomJS(
-            args={
-                "source": source,
-                "table": table_source,
-                "decisions": [list(map(int, p.values)) for p in run.front.policies],
-                "row_of": row_of,
-                "constant_of": constant_of,
-                "heading": heading,
-                "names": names,
-            },
-            code=SHOW_POLICY,
-        ),
+    show = CustomJS(
+        args={
+            "source": source,
+            "table": table_source,
+            "grid_table": table,
+            "decisions": [list(map(int, run.front.policies[f].values)) for f in firsts],
+            "row_of": row_of,
+            "constant_of": constant_of,
+            "heading": heading,
+            "names": names,
+            "xr": plot.x_range,
+            "yr": plot.y_range,
+            "width": width,
+            "height": height,
+        },
+        code=SHOW_POLICY,
     )
+    plot.select_one(TapTool).callback = show
     summary = run.summary
     facts = [
         f"hypervolume {summary.front.hypervolume:.6g} against the baseline's {summary.baseline.hypervolume:.6g}",
@@ -234,7 +328,8 @@ def render(run: RunDirectory) -> str:
         facts.append(f"gap to the certified bound {100 * run.optimality.gap:.1f} %")
     header = Div(
         text=f"<h2>parley: {run.case_study}</h2><p>{'; '.join(facts)}. Knee policy: {summary.selected}.</p>",
-        width=1080,
+        width=1040,
     )
-    layout = column(header, row(column(plot, counter, *sliders), column(*views)))
+    notes = Div(text=_notes(run, i, j, coloured), name="plot-notes", width=width)
+    layout = column(header, row(column(plot, readout, notes, counter, *sliders), column(*views)))
     return stable_ids(file_html(layout, INLINE, title=f"parley report: {run.case_study}"))

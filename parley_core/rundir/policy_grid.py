@@ -20,11 +20,28 @@ def read_map(directory: Path) -> PolicyMap | None:
     return PolicyMap.from_json(json.loads(path.read_text())) if path.is_file() else None
 
 
+DISCRETE = 16
+"""Decisions with at most this many values get one colour band per value."""
+
+
+def decision_colours(low: int, high: int) -> Any:
+    """The colour scale of a decision's values, as the plugins' policy.png draw them
+    (viridis reversed: small values yellow, large ones purple), with one band per integer
+    value where there are at most :data:`DISCRETE` of them."""
+    from bokeh.models import LinearColorMapper
+    from bokeh.palettes import Viridis256, viridis
+
+    count = high - low + 1
+    if count <= DISCRETE:
+        palette = tuple(reversed(viridis(count)))
+        return LinearColorMapper(palette=palette, low=low - 0.5, high=high + 0.5, nan_color="white")
+    return LinearColorMapper(palette=tuple(reversed(Viridis256)), low=low, high=high, nan_color="white")
+
+
 def grids(run: RunDirectory, table_source: Any, columns: dict[str, list[Any]]) -> list[Any]:
     """The grid figures (one per service, at most three) and the slice menus, or nothing
     when the URC observes fewer than two variables."""
-    from bokeh.models import BooleanFilter, CDSView, ColorBar, CustomJS, LinearColorMapper, Select
-    from bokeh.palettes import Viridis256
+    from bokeh.models import BooleanFilter, CDSView, ColorBar, CustomJS, Range1d, Select
     from bokeh.plotting import figure
 
     observation = list(run.observation)
@@ -58,29 +75,25 @@ def grids(run: RunDirectory, table_source: Any, columns: dict[str, list[Any]]) -
         for menu in menus:
             menu.js_on_change("value", callback)
     views: list[Any] = []
+    if found is not None:
+        x_span, y_span = (-0.5, found.width - 0.5), (-0.5, found.height - 0.5)
+    else:
+        x_span = (min(columns[x]) - 0.5, max(columns[x]) + 0.5)
+        y_span = (min(columns[y]) - 0.5, max(columns[y]) + 0.5)
     for service in run.services[:3]:
-        mapper = LinearColorMapper(palette=Viridis256, low=service.low, high=service.high, nan_color="white")
+        mapper = decision_colours(service.low, service.high)
         grid = figure(
-            width=440,
-            height=400,
+            width=420,
+            height=380,
             title=f"{service.name} ({service.constant}) per observation of the URC",
             x_axis_label=x,
             y_axis_label=y,
+            x_range=Range1d(*x_span, bounds=x_span),
+            y_range=Range1d(*y_span, bounds=y_span),
             tools="hover,pan,wheel_zoom,reset",
             tooltips=[(v, f"@{v}") for v in observation] + [(service.constant, f"@{service.constant}")],
-            match_aspect=True,
             name=f"policy-map-{service.constant}",
         )
-        if found is not None:
-            if found.blocked:
-                grid.rect(
-                    [c[0] for c in found.blocked],
-                    [c[1] for c in found.blocked],
-                    1.0,
-                    1.0,
-                    color="#262626",
-                    name="map-blocked",
-                )
         grid.rect(
             x,
             y,
@@ -92,6 +105,15 @@ def grids(run: RunDirectory, table_source: Any, columns: dict[str, list[Any]]) -
             line_color=None,
             name=f"policy-cells-{service.constant}",
         )
+        if found is not None and found.blocked:  # over the cells: an obstacle is never hidden
+            grid.rect(
+                [c[0] for c in found.blocked],
+                [c[1] for c in found.blocked],
+                1.0,
+                1.0,
+                color="#262626",
+                name="map-blocked",
+            )
         if found is not None and found.marks:
             grid.text(
                 [m[1] - 0.3 for m in found.marks],
@@ -104,6 +126,8 @@ def grids(run: RunDirectory, table_source: Any, columns: dict[str, list[Any]]) -
                 text_align="center",
                 name="map-marks",
             )
-        grid.add_layout(ColorBar(color_mapper=mapper, title=service.constant), "right")
+        grid.add_layout(
+            ColorBar(color_mapper=mapper, title=service.constant, name=f"colours-{service.constant}"), "right"
+        )
         views.append(grid)
     return menus + views

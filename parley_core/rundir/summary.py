@@ -261,14 +261,23 @@ class SetRecord:
     size: int
     hypervolume: float
     spread: float | None
+    points: int | None = None
+    """The front's distinct points: policies whose values are ties within the verification
+    tolerance share one (None: not recorded, a file from before)."""
 
     def to_json(self) -> dict[str, Any]:
-        return {"size": self.size, "hypervolume": self.hypervolume, "spread": self.spread}
+        document: dict[str, Any] = {"size": self.size, "hypervolume": self.hypervolume, "spread": self.spread}
+        if self.points is not None:
+            document["points"] = self.points
+        return document
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> SetRecord:
         return cls(
-            size=int(data["size"]), hypervolume=float(data["hypervolume"]), spread=_maybe_float(data.get("spread"))
+            size=int(data["size"]),
+            hypervolume=float(data["hypervolume"]),
+            spread=_maybe_float(data.get("spread")),
+            points=None if data.get("points") is None else int(data["points"]),
         )
 
 

@@ -49,14 +49,19 @@ def check_output(out: Path, force: bool) -> None:
         raise OutputError(f"output directory {out} exists and is not empty; choose another --out or add --force")
 
 
-def front_csv(front: Valued, extra: dict[str, list[Any]] | None = None) -> str:
-    """``policy``, then any ``extra`` columns, then one column per objective (full precision)."""
+def front_csv(front: Valued, extra: dict[str, list[Any]] | None = None, *, points: bool = False) -> str:
+    """``policy``, then any ``extra`` columns, then one column per objective (full precision);
+    with ``points``, last the ``point`` of each policy (policies whose values are ties, within
+    the verification tolerance, share one: :func:`parley_core.metrics.tie_points`)."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    extra = extra or {}
-    writer.writerow(["policy", *extra, *(o.name for o in front.objectives)])
+    extra = dict(extra or {})
+    directions = [o.direction for o in front.objectives]
+    tail = {"point": list(metrics.tie_points(np.array(front.values), directions))} if points else {}
+    writer.writerow(["policy", *extra, *(o.name for o in front.objectives), *tail])
     for i, (policy, row) in enumerate(zip(front.policies, front.values)):
-        writer.writerow([policy.name, *(column[i] for column in extra.values()), *(repr(v) for v in row)])
+        cells = [*(column[i] for column in extra.values()), *(repr(v) for v in row), *(c[i] for c in tail.values())]
+        writer.writerow([policy.name, *cells])
     return out.getvalue()
 
 
@@ -86,13 +91,19 @@ def hypervolume(result: RunResult, valued: Valued) -> float:
     return metrics.hypervolume(np.array(valued.values), directions, result.reference)
 
 
+def point_count(valued: Valued) -> int:
+    """How many points the set's values make, policies whose values are ties sharing one."""
+    directions = [o.direction for o in valued.objectives]
+    points = metrics.tie_points(np.array(valued.values), directions)
+    return int(points.max()) if len(points) else 0
+
+
 def spread(result: RunResult, valued: Valued) -> float | None:
-    """Deb's spread of the set's non-dominated points (None unless two objectives)."""
+    """Deb's spread of the set's non-dominated points, one per tie (None unless two objectives)."""
     directions = [o.direction for o in result.family.objectives]
     if len(directions) != 2:
         return None
-    values = np.array(valued.values)
-    return metrics.spread(values[metrics.nondominated(values, directions)], directions)
+    return metrics.spread(metrics.distinct_front(np.array(valued.values), directions), directions)
 
 
 def optimality(result: RunResult, front_hypervolume: float) -> OptimalityRecord | None:
@@ -232,7 +243,12 @@ def summary(result: RunResult) -> RunSummary:
         optimality=optimality(result, hv_front),
         robust=scenarios_summary(result),
         infinite_values=infinite_counts(result),
-        front=SetRecord(size=len(result.front), hypervolume=hv_front, spread=spread(result, result.front)),
+        front=SetRecord(
+            size=len(result.front),
+            hypervolume=hv_front,
+            spread=spread(result, result.front),
+            points=point_count(result.front),
+        ),
         baseline=SetRecord(size=len(result.baseline), hypervolume=hv_base, spread=spread(result, result.baseline)),
         hypervolume_reference=result.reference,
         hypervolume_gain=hv_front - hv_base,
@@ -282,7 +298,7 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path
     try:
         (staging / "model.prism").write_text(family.prism)
         (staging / "properties.pctl").write_text(family.properties_text())
-        (staging / "front.csv").write_text(front_csv(result.front))
+        (staging / "front.csv").write_text(front_csv(result.front, points=True))
         (staging / "policies.csv").write_text(policy_files.wide_csv(family, result.front.policies))
         (staging / "decisions.csv").write_text(decisions_csv(family))
         constants = [s.constant for s in family.services]
