@@ -15,6 +15,7 @@ import attrs
 import numpy as np
 from attrs import field, frozen, validators
 
+from parley_core.docstrings import fields_in_help
 from parley_core.errors import ModelError, PolicyError
 from parley_core.tables import Tabular
 
@@ -71,6 +72,7 @@ def _tuple_of(value: Iterable[Any], item_type: type[_T]) -> tuple[_T, ...]:
     return result
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class Objective:
     """A quantity to optimize, given as a PCTL property over the system model.
@@ -81,10 +83,15 @@ class Objective:
     """
 
     name: str = field(validator=_IDENTIFIER)
+    """An identifier: the CSV column, ``--constraint NAME<=V``'s name."""
     formula: str = field(validator=validators.min_len(1))
+    """``P=? [...]`` or ``R{"r"}=? [...]`` over the system model's labels and variables."""
     direction: Direction = field(converter=Direction)
+    """``Direction.MIN`` or ``Direction.MAX`` (or ``"min"``, ``"max"``)."""
     description: str = ""
+    """One line for people, shown nowhere the formula is enough."""
     reference: float | None = None
+    """The worst value still of interest (the hypervolume's reference), or None to derive one."""
 
     def to_minimize(self, value: float) -> float:
         return self.direction.sign * value
@@ -98,6 +105,7 @@ class Objective:
         return cls(name=data["name"], formula=data["formula"], direction=Direction(data["direction"]))
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class Service:
     """An uncertainty-reduction service, and the model constant that decides when it runs.
@@ -109,12 +117,19 @@ class Service:
     """
 
     name: str = field(validator=_IDENTIFIER)
+    """An identifier naming the service (``localisation``)."""
     constant: str = field(validator=_IDENTIFIER)
+    """The model's ``const int`` that decides when the service runs (``c``)."""
     kind: DecisionKind = field(converter=DecisionKind)
+    """``DecisionKind.FREQUENCY`` (every k-th step) or ``DecisionKind.THRESHOLD``."""
     low: int = field(validator=validators.instance_of(int))
+    """The constant's smallest value."""
     high: int = field(validator=validators.instance_of(int))
+    """The constant's largest value (at least ``low``)."""
     description: str = ""
+    """One line for people."""
     choices: tuple[int, ...] = field(default=(), converter=lambda values: tuple(sorted({int(v) for v in values})))
+    """The values allowed, when not every one of ``low..high`` is (empty: all of them)."""
 
     @high.validator
     def _check_range(self, _attribute: attrs.Attribute, high: int) -> None:
@@ -183,12 +198,15 @@ class Service:
         )
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class Baseline:
     """A reference policy that uses one value per service everywhere (a fixed frequency or threshold)."""
 
     name: str = field(validator=validators.min_len(1))
+    """Its name in baseline.csv and the reports (``interval-3``)."""
     values: Mapping[str, int] = field(converter=lambda m: dict(m))
+    """The value of each service constant, used at every observation valuation."""
 
     @classmethod
     def sweep(cls, constant: str, values: Iterable[int], name: str = "every-{}") -> tuple[Baseline, ...]:
@@ -211,6 +229,7 @@ def _baselines(value: Iterable[Baseline]) -> tuple[Baseline, ...]:
     return _tuple_of(value, Baseline)
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class SystemModel:
     """What a case study hands to the core: a DTMC with its services, observation and objectives.
@@ -272,6 +291,7 @@ def decision_name(constant: str, valuation: tuple[int, ...]) -> str:
     return "_".join([constant, *parts])
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class Decision:
     """One decision constant of the augmented model: a service's value at one observation valuation."""
@@ -281,6 +301,7 @@ class Decision:
     valuation: tuple[int, ...]
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class Family:
     """The augmented, parametric model: every policy is an assignment of its decision constants.
@@ -374,6 +395,7 @@ class Family:
                 )
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class Policy:
     """A URC policy: one value per decision constant of a family, in the family's order."""
@@ -382,6 +404,7 @@ class Policy:
     values: tuple[int, ...] = field(converter=lambda v: tuple(int(x) for x in v))
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class Valued(Tabular):
     """Policies with their objective values (in the objectives' own units and directions):
@@ -411,6 +434,7 @@ class Valued(Tabular):
         ]
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class Front(Valued):
     """A Pareto front: policies whose values no other policy of the front dominates (the

@@ -271,3 +271,23 @@ def test_version_and_the_case_argument_in_help():
     assert "run [OPTIONS] {CASE}" in shown and "{case}" not in shown
     assert "robot_grid, turtlebot, web_ids, tas" in shown
     assert "are not counted" in invoke("exact", "--help").stdout  # what --time-limit covers
+
+
+def test_a_baseline_table_of_many_constants_stays_readable():
+    """A family of 16 holes (a pole-balancing model's, say): the baselines' constants as one
+    column of their values, not 16 columns squeezed to '…' in an 80-column terminal."""
+    from rich.console import Console
+
+    from parley_core.cli.console import front_table
+    from parley_core.model import Direction, Objective, Policy, Valued
+
+    objectives = [Objective(name="fall", formula="P=? [F x]", direction=Direction.MIN)]
+    constants = {f"h{i}": [1, 2, 3] for i in range(16)}
+    constants["same"] = [5, 5, 5]  # a constant every baseline sets alike is left out
+    valued = Valued(objectives=objectives, policies=[Policy(name=f"all-{v}", values=()) for v in (1, 2, 3)],
+                    values=[[0.1], [0.2], [0.3]])  # fmt: skip
+    console = Console(width=80, record=True)
+    console.print(front_table("Baseline", valued, constants))
+    text = console.export_text()
+    assert "…" not in text and "h0..h15 (16 varying)" in text and "same" not in text
+    assert "1 1 1 1 1 1 1 1 1 1 1 1 1 1 1 1" in text

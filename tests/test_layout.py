@@ -13,7 +13,7 @@ import parley_core
 PACKAGE = Path(parley_core.__file__).parent
 
 LAYERS = [  # a module may import its own layer's earlier rooms and anything in an earlier layer
-    ["errors", "files", "progress", "tables", "model", "constraints", "boxes", "metrics"],  # 1 base
+    ["errors", "files", "progress", "tables", "docstrings", "model", "constraints", "boxes", "metrics"],  # 1 base
     ["prism", "urc", "views", "plugin"],  # 2 languages and contracts
     ["quotient", "evaluate", "family"],  # 3 engine
     ["search", "verify", "optimality", "robust"],  # 4 methods

@@ -41,6 +41,9 @@ def test_the_robot_grid_notebook_runs(tmp_path):
     assert any(page.startswith("<iframe srcdoc=") and "front-points" in page for page in pages)
     assert outputs(notebook, "image/png")  # run.plot()
     assert (tmp_path / "runs" / "notebook-robot_grid" / "controller.json").is_file()
+    streams = "".join("".join(o.get("text", "")) for cell in notebook.cells for o in cell.get("outputs", []))
+    assert "ipywidgets" not in streams and "site-packages" not in streams  # no warning with a path
+    assert "\x1b[" not in streams and "search" in streams  # the bars as plain text, no terminal escapes
 
 
 @pytest.mark.slow

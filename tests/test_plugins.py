@@ -234,3 +234,29 @@ def test_the_plugin_guide_names_every_case_study_field():
     sentence = guide[guide.index("Their\nfields are documented once") :].split("; a test checks")[0]
     named = {part.strip(" `\n,.") for part in sentence.split(":", 1)[1].replace(" and ", ",").split(",")}
     assert named == {f.name for f in attrs.fields(CaseStudy)}
+
+
+def test_help_shows_every_field_of_the_plugin_facing_value_objects():
+    import pydoc
+
+    import parley.plugin as kit
+    from parley_core.model import Decision, Family, Front, Policy, Valued
+
+    classes = [kit.Service, kit.Objective, kit.Baseline, kit.SystemModel, kit.CaseStudy, kit.PolicyMap]
+    classes += [kit.Simulator, kit.Episodes, kit.EventModel, Decision, Family, Policy, Valued, Front]
+    for cls in classes:
+        text = pydoc.render_doc(cls)
+        missing = [f.name for f in attrs.fields(cls) if f"{f.name}: " not in text]
+        assert not missing, (cls.__name__, missing)
+    assert "The model's ``const int`` that decides when the service runs" in pydoc.render_doc(kit.Service)
+
+
+def test_the_plugin_surface_is_one_module_without_storm_or_matplotlib():
+    code = (
+        "import sys, parley.plugin as p; print(len(p.__all__), 'stormpy' in sys.modules, 'matplotlib' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60).stdout.split()
+    assert out[1:] == ["False", "False"] and int(out[0]) >= 30
+    import parley.plugin as kit
+
+    assert all(getattr(kit, name) is not None for name in kit.__all__)

@@ -9,6 +9,7 @@ from typing import Any
 import attrs
 from attrs import field, frozen, validators
 
+from parley_core.docstrings import fields_in_help
 from parley_core.errors import OptionError
 from parley_core.model import SystemModel
 from parley_core.plugin.options import as_text, convert, parse_assignments
@@ -38,6 +39,7 @@ class PolicyTable(Mapping[tuple[int, ...], Mapping[str, int]]):
         return {valuation: decision[constant] for valuation, decision in self._table.items()}
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class CaseStudy:
     """A case study: a name, typed options and a builder of system models.

@@ -10,6 +10,8 @@ from typing import Any
 
 from attrs import field, frozen
 
+from parley_core.docstrings import fields_in_help
+
 
 def _cells(rows) -> tuple[tuple[int, int], ...]:
     return tuple((int(x), int(y)) for x, y in rows)
@@ -19,6 +21,7 @@ def _marks(rows) -> tuple[tuple[str, int, int], ...]:
     return tuple((str(label), int(x), int(y)) for label, x, y in rows)
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class PolicyMap:
     x: str

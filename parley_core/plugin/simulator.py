@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from attrs import field, frozen
 
+from parley_core.docstrings import fields_in_help
 from parley_core.model import SystemModel
 from parley_core.progress import Progress
 from parley_core.urc.controller import URC
@@ -22,6 +23,7 @@ Z99 = 2.5758293035489004
 """The standard normal quantile of 0.995."""
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class Episodes:
     """What a simulator's episodes of one policy gave: per objective, one value per episode
@@ -33,6 +35,7 @@ class Episodes:
     trace: Any = field(default=None, eq=False, repr=False)
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class Simulator:
     """A plugin's closed-loop simulator (the :class:`~parley_core.CaseStudy` field ``simulator``).

@@ -11,6 +11,8 @@ from collections.abc import Callable, Mapping
 import numpy as np
 from attrs import field, frozen
 
+from parley_core.docstrings import fields_in_help
+
 Events = Callable[[Mapping[str, np.ndarray], Mapping[str, np.ndarray]], tuple[np.ndarray, np.ndarray, np.ndarray]]
 """``events(before, after)``: for transitions from states with variable values ``before`` to
 ``after`` (arrays, one entry per transition), which are trials, their outcomes (0/1) and
@@ -25,6 +27,7 @@ def bernoulli(value: float, outcomes: np.ndarray, contexts: np.ndarray) -> np.nd
     return np.where(np.asarray(outcomes, dtype=bool), value, 1.0 - value)
 
 
+@fields_in_help
 @frozen(kw_only=True)
 class EventModel:
     """What a plugin tells the estimator about one drifting parameter (the

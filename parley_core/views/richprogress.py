@@ -4,6 +4,8 @@ a :class:`~parley_core.progress.Reporter`), shared by the ``parley`` command and
 
 from __future__ import annotations
 
+import importlib.util
+import sys
 import time
 from contextlib import AbstractContextManager, nullcontext
 
@@ -22,6 +24,11 @@ from parley_core.progress import NullReporter, Reporter
 
 
 def stderr() -> Console:
+    """The console of progress and notes: stderr. In a Jupyter kernel without ipywidgets
+    (which rich draws live bars with, and warns about, with its file's path, when it is
+    missing), plain text: the bars as they end, no terminal escapes."""
+    if "ipykernel" in sys.modules and importlib.util.find_spec("ipywidgets") is None:
+        return Console(stderr=True, force_jupyter=False, force_terminal=False)
     return Console(stderr=True)
 
 

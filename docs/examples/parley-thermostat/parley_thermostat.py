@@ -15,29 +15,27 @@ from __future__ import annotations
 
 from attrs import frozen, validators
 
-from parley_core import (
+from parley.plugin import (
     Baseline,
     CaseStudy,
-    DecisionKind,
-    Direction,
-    Objective,
-    Service,
-    SystemModel,
-    hookimpl,
-    option,
-    positive,
-)
-from parley_core.prism.writer import (
     Command,
     Constant,
+    DecisionKind,
+    Direction,
     Formula,
     Label,
     Module,
+    Objective,
     Program,
     RewardItem,
     Rewards,
+    Service,
+    SystemModel,
     Update,
     Variable,
+    hookimpl,
+    option,
+    positive,
 )
 
 
