@@ -19,7 +19,7 @@ LAYERS = [  # a module may import its own layer's earlier rooms and anything in 
     ["search", "verify", "optimality", "robust"],  # 4 methods
     ["pipeline"],  # 5 one run
     ["rundir", "experiment", "simulation", "testing"],  # 6 products
-    ["api", "cli", "__main__"],  # 7 faces
+    ["api", "cli", "guard", "__main__"],  # 7 faces
 ]
 TOP_LEVEL_MODULES = 15
 """At most this many modules at the top of parley_core besides its packages."""

@@ -14,6 +14,7 @@ is one JSON document and nothing else.
 
 from __future__ import annotations
 
+import os
 import sys
 import warnings
 
@@ -37,7 +38,7 @@ def main() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("always", PluginWarning)
         warnings.showwarning = show
-        app()
+        app(prog_name=os.environ.get("PARLEY_PROGRAM", "parley"))
 
 
 __all__ = ["app", "main"]
