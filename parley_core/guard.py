@@ -40,10 +40,21 @@ def explain(returncode: int) -> str:
     )
 
 
+def _end_with_the_guard() -> None:
+    """In the child, before it runs: end it when the guard ends (Linux's parent-death
+    signal), so that a guard killed outright leaves no command running on its own."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):  # not Linux: the child outlives a killed guard
+        pass
+
+
 def supervise(command: list[str]) -> int:
     """Run ``command`` (the parley command in a child process) to its end: its exit status,
     or :data:`CRASHED` with :func:`explain`'s line when a signal ended it."""
-    child = subprocess.Popen(command, env={**os.environ, GUARDED: "1"})
+    child = subprocess.Popen(command, env={**os.environ, GUARDED: "1"}, preexec_fn=_end_with_the_guard)
     interrupt = signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the child's to handle
     terminate = signal.signal(signal.SIGTERM, lambda number, _frame: child.send_signal(number))
     try:

@@ -46,3 +46,33 @@ def test_the_installed_command_is_guarded_and_named_parley():
     assert helped.stdout.startswith("Usage: parley run [OPTIONS] {CASE}")
     refused = subprocess.run([str(command), "run", "nope"], capture_output=True, text=True, timeout=60)
     assert refused.returncode == 2 and refused.stderr.strip().startswith("error: unknown case study 'nope'")
+
+
+def test_a_killed_guard_leaves_no_command_running(tmp_path):
+    import os
+    import signal
+    import time
+
+    marker = tmp_path / "child.pid"
+    code = f"import os, time; open({str(marker)!r}, 'w').write(str(os.getpid())); time.sleep(60)"
+    guard = subprocess.Popen([sys.executable, "-c", GUARD.format(code=code)])
+    for _ in range(100):
+        if marker.is_file() and marker.read_text():
+            break
+        time.sleep(0.1)
+    child = int(marker.read_text())
+    guard.send_signal(signal.SIGKILL)
+    guard.wait()
+    for _ in range(50):
+        try:
+            os.kill(child, 0)
+        except ProcessLookupError:
+            return
+        try:
+            with open(f"/proc/{child}/stat") as handle:
+                if handle.read().split()[2] == "Z":
+                    return
+        except (FileNotFoundError, ProcessLookupError):  # it ended between the two looks
+            return
+        time.sleep(0.1)
+    raise AssertionError("the command outlived its killed guard")
