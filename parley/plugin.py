@@ -62,11 +62,12 @@ if TYPE_CHECKING:
 
 
 def __getattr__(name: str) -> Any:
-    """``figure`` and ``save``, imported when first used (they need matplotlib)."""
+    """``figure`` and ``save``, imported when first used (they need matplotlib), as
+    :mod:`parley_core` gives them."""
     if name in ("figure", "save"):
-        from parley_core.views import plotting
+        import parley_core
 
-        return getattr(plotting, name)
+        return getattr(parley_core, name)
     raise AttributeError(f"module 'parley.plugin' has no attribute {name!r}")
 
 
