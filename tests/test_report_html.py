@@ -12,7 +12,7 @@ import re
 import pytest
 
 import parley
-from tests.browser import ARGS, POINT, Page, require_browser
+from tests.browser import ARGS, ARTEFACTS, POINT, Page, require_browser
 
 SMALL = {"population": 10, "generations": 2, "bound": "ideal", "progress": False}
 CASES = {
@@ -118,6 +118,35 @@ def test_run_report_in_a_browser(case, browser, tmp_path):
     assert page.page.evaluate("() => document.documentElement.scrollWidth") <= 1280
     page.screenshot(f"report-{case}-1280x800.png")
     assert page.problems == []
+
+
+@pytest.mark.slow
+def test_the_inline_page_fits_a_documentation_pages_width(browser, tmp_path):
+    """Jupyter's view of a run (run.report): in a 740 px column, as a documentation page has,
+    the whole page is there (stacked, nothing cut off at the frame's edge) and a click works."""
+    run = parley.run("robot_grid", seed=2, **SMALL, out=tmp_path / "run", options=CASES["robot_grid"])
+    host = tmp_path / "host.html"
+    host.write_text(
+        f"<html><body style='margin:0'><div style='width:740px'>{run.report._repr_html_()}</div></body></html>"
+    )
+    page = browser.new_page(viewport={"width": 800, "height": 900})
+    page.goto(host.resolve().as_uri())
+    frame = page.frames[1]
+    frame.wait_for_function("() => window.Bokeh && Bokeh.index.roots.length > 0", timeout=30_000)
+    page.wait_for_timeout(500)
+    assert frame.evaluate("() => document.documentElement.scrollWidth") <= 740
+    names = frame.evaluate("() => Array.from(Bokeh.documents[0].get_model_by_name('front-source').data.policy)")
+    target = next(k for k, n in enumerate(names) if n != run.summary.selected)
+    x, y = frame.evaluate(POINT, ["front-plot", "front-points", target])
+    page.mouse.move(x, y)
+    page.wait_for_timeout(100)
+    page.mouse.click(x, y)
+    page.wait_for_timeout(500)
+    heading = frame.evaluate("() => Bokeh.documents[0].get_model_by_name('policy-heading').text")
+    assert f"policy {names[target]}" in heading
+    ARTEFACTS.mkdir(exist_ok=True)
+    page.screenshot(path=str(ARTEFACTS / "report-inline-740.png"), full_page=True)
+    page.close()
 
 
 @pytest.mark.slow

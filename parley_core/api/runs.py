@@ -110,7 +110,7 @@ class Page:
 
     path: Path
     run: Run = field(eq=False, repr=False)
-    height: int = 860
+    height: int = 1500
 
     def html(self) -> str:
         """The page (made now from the run directory if it has no report.html)."""
@@ -121,9 +121,12 @@ class Page:
         return render(self.run.files)
 
     def _repr_html_(self) -> str:
+        """Jupyter's view: the page stacked (the policy view below the front), so that it fits
+        a notebook's or a documentation page's width instead of being cut off."""
+        from parley_core.rundir.page import render
         from parley_core.views import inline
 
-        return inline(self.html(), self.height)
+        return inline(render(self.run.files, stacked=True), self.height)
 
 
 @frozen(kw_only=True)

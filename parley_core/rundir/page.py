@@ -94,8 +94,14 @@ def _notes(run: RunDirectory, i: int, j: int, coloured: int | None) -> str:
     return "; ".join(notes)
 
 
-def render(run: RunDirectory) -> str:
-    """The page's HTML (self-contained)."""
+STACKED_WIDTH = 620
+"""The width of a stacked page (a notebook's or a documentation page's output)."""
+
+
+def render(run: RunDirectory, stacked: bool = False) -> str:
+    """The page's HTML (self-contained): the front beside the policy view, 1,040 px wide, or
+    ``stacked``, the policy view below the front, :data:`STACKED_WIDTH` px wide, for a
+    notebook's output or a documentation page, where the wide page would be cut off."""
     from bokeh.embed import file_html
     from bokeh.layouts import column, row
     from bokeh.models import (
@@ -328,8 +334,11 @@ def render(run: RunDirectory) -> str:
         facts.append(f"gap to the certified bound {100 * run.optimality.gap:.1f} %")
     header = Div(
         text=f"<h2>parley: {run.case_study}</h2><p>{'; '.join(facts)}. Knee policy: {summary.selected}.</p>",
-        width=1040,
+        width=STACKED_WIDTH if stacked else 1040,
     )
     notes = Div(text=_notes(run, i, j, coloured), name="plot-notes", width=width)
-    layout = column(header, row(column(plot, readout, notes, counter, *sliders), column(*views)))
+    front_views = column(plot, readout, notes, counter, *sliders)
+    layout = (
+        column(header, front_views, column(*views)) if stacked else column(header, row(front_views, column(*views)))
+    )
     return stable_ids(file_html(layout, INLINE, title=f"parley report: {run.case_study}"))
