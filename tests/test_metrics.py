@@ -108,3 +108,25 @@ def test_ties_chain_into_one_point_and_scale_with_the_value():
     assert metrics.tie_points(chained, [Direction.MIN, Direction.MIN]).tolist() == [1, 1, 1]
     small = np.array([[1.0, 1.0], [1.0 + step, 1.0]])
     assert metrics.tie_points(small, [Direction.MIN, Direction.MIN]).tolist() == [1, 2]
+
+
+def test_a_front_plot_of_three_objectives_colours_the_third_and_says_what_is_left_out():
+    from parley_core.views.frontplot import front_figure
+
+    objectives = [
+        Objective(name=n, formula="P=? [F x]", direction=d)
+        for n, d in (
+            ("success", Direction.MAX),
+            ("cost", Direction.MIN),
+            ("energy", Direction.MIN),
+            ("risk", Direction.MIN),
+        )
+    ]
+    front = np.array([[0.9, 10.0, 3.0, 0.1], [0.8, 5.0, 4.0, 0.2]])
+    figure = front_figure(
+        title="t", objectives=objectives, front=front, baseline=front[:1], baseline_names=["b"], selected=0,
+        selected_name="p1", reference=[0.0, 20.0, 10.0, 1.0], bound=np.array([[1.0, 4.0, 2.0, 0.0]]),
+    )  # fmt: skip
+    texts = [t.get_text() for ax in figure.axes for t in ax.texts]
+    assert any("not shown: risk" in t and "the ideal point only" in t for t in texts)
+    assert [ax.get_ylabel() for ax in figure.axes][-1] == "energy (min)"  # the colour bar

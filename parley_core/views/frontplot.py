@@ -34,14 +34,28 @@ def front_figure(
     base = np.asarray(baseline, dtype=float).reshape(-1, len(objectives))
     if len(objectives) >= 2:
         i, j = (1, 0) if objectives[0].direction is Direction.MAX else (0, 1)
-        ax.scatter(
-            front[:, i],
-            front[:, j],
-            s=22,
-            facecolors="none",
-            edgecolors="tab:blue",
-            label=f"parley front ({len(front)})",
-        )
+        third = next((k for k in range(len(objectives)) if k not in (i, j)), None)
+        if third is None:
+            ax.scatter(
+                front[:, i],
+                front[:, j],
+                s=22,
+                facecolors="none",
+                edgecolors="tab:blue",
+                label=f"parley front ({len(front)})",
+            )
+        else:  # a third objective as the points' colour; the others are named as left out
+            shown = ax.scatter(
+                front[:, i], front[:, j], s=22, c=front[:, third], cmap="viridis", label=f"parley front ({len(front)})"
+            )
+            fig.colorbar(shown, ax=ax, label=f"{objectives[third].name} ({objectives[third].direction.value})")
+            ax.annotate(
+                _left_out(objectives, (i, j, third), bound),
+                (0.0, -0.16),
+                xycoords="axes fraction",
+                fontsize=7,
+                va="top",
+            )
         ax.scatter(base[:, i], base[:, j], marker="x", color="tab:red", s=36, label=f"baseline ({len(base)})")
         # each scenario's values of the front's policies: the worst case is their lower envelope
         for label, each in scenarios:
@@ -71,6 +85,18 @@ def front_figure(
     ax.legend(fontsize=8)
     fig.tight_layout()
     return fig
+
+
+def _left_out(objectives: Sequence[Objective], shown: tuple[int, ...], bound: np.ndarray | None) -> str:
+    """The note of a plot of three or more objectives: what it leaves out, and what the
+    drawn bound is (its points projected onto the two axes; a single point is only the
+    ideal point, sound for each objective alone)."""
+    left = [o.name for k, o in enumerate(objectives) if k not in shown]
+    notes = [f"not shown: {', '.join(left)} (front.csv has them)"] if left else []
+    if bound is not None and len(bound):
+        what = "the ideal point only" if len(bound) == 1 else f"its {len(bound)} points"
+        notes.append(f"bound over {len(objectives)} objectives: {what}, projected onto these two")
+    return "; ".join(notes)
 
 
 def _shade_bound(ax, objectives, axes: tuple[int, int], bound, front, reference) -> None:
