@@ -117,14 +117,16 @@ def test_the_readmes_example_as_a_plain_script(tmp_path, how):
 
 
 @pytest.mark.slow
-def test_the_api_pages_examples_as_one_plain_script(tmp_path):
-    """docs/api.md's blocks in order, as one script file without a guard."""
+@pytest.mark.parametrize("how", ["file", "stdin"])
+def test_the_api_pages_examples_as_one_plain_script(tmp_path, how):
+    """docs/api.md's blocks in order, as one script without a guard: a file, or stdin."""
     blocks = re.findall(r"```python\n(.*?)```", (ROOT / "docs" / "api.md").read_text(), flags=re.S)
     for name in ("pump.prism", "pump.pctl"):
         shutil.copy(ROOT / "docs" / "tutorial" / name, tmp_path / name)
+    text = "\n".join(blocks) + textwrap.dedent(README_CHECK)
     script = tmp_path / "api.py"
-    script.write_text("\n".join(blocks) + textwrap.dedent(README_CHECK.replace("urc.", "urc.")))
-    result = _python(script, tmp_path, timeout=900)
+    script.write_text(text)
+    result = _python(script if how == "file" else None, tmp_path, None if how == "file" else text, timeout=900)
     assert result.returncode == 0, result.stderr[-3000:]
     assert "loaded True" in result.stdout
     assert "robot_grid" in result.stdout and "holes" in result.stdout
