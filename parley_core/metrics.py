@@ -33,8 +33,9 @@ def nondominated(values: np.ndarray, directions: Sequence[Direction]) -> np.ndar
 
 
 TIE_TOLERANCE = 1e-9
-"""Values closer than this (times the value's size, at least 1) are ties: the verification
-tolerance, within which the search's evaluator and Storm may differ (:data:`parley_core.verify.TOLERANCE`)."""
+"""Values of a set closer than this times their objective's largest magnitude there (at
+least 1, :func:`tie_scale`) are ties: the verification tolerance, within which the search's
+evaluator and Storm may differ (:data:`parley_core.verify.TOLERANCE`)."""
 
 
 def _maximised(values: np.ndarray, directions: Sequence[Direction]) -> np.ndarray:
@@ -82,15 +83,15 @@ def tolerant_front(values: np.ndarray, directions: Sequence[Direction], toleranc
     candidates = np.flatnonzero(close)
     units = np.where(points[candidates] > FLOOR, points[candidates], 0.0) / scale
     order = candidates[np.lexsort((np.arange(len(candidates)), -units.sum(axis=1)))]
-    kept: list[int] = []
+    kept = np.empty((len(order), points.shape[1]))  # the points kept so far, in order
+    count = 0
     for i in order:
-        if kept:
-            others = points[kept]
-            no_worse = (others >= points[i] - scale).all(axis=1)
-            if (no_worse & (others > points[i] + scale).any(axis=1)).any():
-                continue
-        kept.append(int(i))
-    keep[rows[kept]] = True
+        others = kept[:count]
+        no_worse = (others >= points[i] - scale).all(axis=1)
+        if not (no_worse & (others > points[i] + scale).any(axis=1)).any():
+            kept[count] = points[i]
+            count += 1
+            keep[rows[i]] = True
     return keep
 
 
@@ -265,19 +266,14 @@ def front_disagreements(
 
     scale = tie_scale(np.vstack([values, found]), tolerance)
 
-    def slack(points: np.ndarray) -> np.ndarray:
-        return np.broadcast_to(scale, points.shape)
-
     covered = np.zeros(len(theirs), dtype=bool)
     member = np.zeros(len(mine), dtype=bool)
     for lo in range(0, len(theirs), 1024):  # in slices: values x found can be large
         part = theirs[lo : lo + 1024]
-        covered[lo : lo + 1024] = (mine[None, :, :] >= (part - slack(part))[:, None, :]).all(axis=2).any(axis=1)
+        covered[lo : lo + 1024] = (mine[None, :, :] >= (part - scale)[:, None, :]).all(axis=2).any(axis=1)
     with np.errstate(invalid="ignore"):  # inf - inf: equal infinities are caught by ==
         for lo in range(0, len(mine), 1024):
             part = mine[lo : lo + 1024]
-            near = (best[None, :, :] == part[:, None, :]) | (
-                np.abs(best[None, :, :] - part[:, None, :]) <= slack(part)[:, None, :]
-            )
+            near = (best[None, :, :] == part[:, None, :]) | (np.abs(best[None, :, :] - part[:, None, :]) <= scale)
             member[lo : lo + 1024] = near.all(axis=2).any(axis=1)
     return values[~covered], found[~member]  # a NaN found value is never near one

@@ -25,10 +25,14 @@ def _suggest(name: str) -> str:
     return f"_{fixed}" if fixed[0].isdigit() else fixed
 
 
+IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+"""A name PRISM and the run files can carry; the model's words, for an error's hint."""
+
+
 def _identifier(instance: Any, attribute: attrs.Attribute, value: Any) -> None:
     """A name PRISM and the run files can carry: letters, digits and underscores, not starting
     with a digit (a :class:`ModelError` naming the field and a name that would do)."""
-    if not isinstance(value, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", value):
+    if not isinstance(value, str) or not IDENTIFIER.fullmatch(value):
         kind = type(instance).__name__.lower()
         raise ModelError(
             f"{kind} {attribute.name} {value!r} is not an identifier: use letters, digits and underscores, "
@@ -36,7 +40,6 @@ def _identifier(instance: Any, attribute: attrs.Attribute, value: Any) -> None:
         )
 
 
-_IDENTIFIER = _identifier
 _T = TypeVar("_T")
 
 
@@ -82,7 +85,7 @@ class Objective:
     the data.
     """
 
-    name: str = field(validator=_IDENTIFIER)
+    name: str = field(validator=_identifier)
     """An identifier: the CSV column, ``--constraint NAME<=V``'s name."""
     formula: str = field(validator=validators.min_len(1))
     """``P=? [...]`` or ``R{"r"}=? [...]`` over the system model's labels and variables."""
@@ -116,9 +119,9 @@ class Service:
     PAYNT's holes have; ``low`` and ``high`` are then its smallest and largest value).
     """
 
-    name: str = field(validator=_IDENTIFIER)
+    name: str = field(validator=_identifier)
     """An identifier naming the service (``localisation``)."""
-    constant: str = field(validator=_IDENTIFIER)
+    constant: str = field(validator=_identifier)
     """The model's ``const int`` that decides when the service runs (``c``)."""
     kind: DecisionKind = field(converter=DecisionKind)
     """``DecisionKind.FREQUENCY`` (every k-th step) or ``DecisionKind.THRESHOLD``."""
@@ -240,7 +243,7 @@ class SystemModel:
     plots); the core never looks inside it.
     """
 
-    name: str = field(validator=_IDENTIFIER)
+    name: str = field(validator=_identifier)
     prism: str = field(validator=validators.min_len(1))
     services: tuple[Service, ...] = field(converter=_services, validator=validators.min_len(1))
     observation: tuple[str, ...] = field(converter=tuple[str, ...])
@@ -313,7 +316,7 @@ class Family:
     (the quotient is built from it); a family read back from a run directory has none.
     """
 
-    name: str = field(validator=_IDENTIFIER)
+    name: str = field(validator=_identifier)
     prism: str
     services: tuple[Service, ...] = field(converter=_services)
     observation: tuple[str, ...] = field(converter=tuple[str, ...])

@@ -41,6 +41,7 @@ from parley_core.cli.options import (
 )
 from parley_core.errors import OptionError
 from parley_core.evaluate import EvaluatorKind
+from parley_core.model import Direction
 from parley_core.optimality.records import Stopped
 
 if TYPE_CHECKING:
@@ -297,7 +298,7 @@ def _print_looseness(console: Console, info: RunSummary, result: RunResult) -> N
         return
     parts = []
     for i, objective in enumerate(result.family.objectives):
-        pick = np.max if objective.direction.value == "max" else np.min
+        pick = np.max if objective.direction is Direction.MAX else np.min
         ours, best = float(pick(front[:, i])), float(pick(points[:, i]))
         share = abs(best - ours) / max(abs(best), 1e-12) if np.isfinite(best) else float("inf")
         parts.append(f"{objective.name} {fmt(ours)} against {fmt(best)} ({100 * share:.1f}%)")
@@ -306,9 +307,10 @@ def _print_looseness(console: Console, info: RunSummary, result: RunResult) -> N
         ". The bound's schedulers see the whole state, the URC only its observation; branch and bound "
         "(--bound refine, or --exact) narrows the gap on the URC's own policies"
     )
-    if (info.front.points or len(front)) <= 2:
+    count = info.front.points or len(front)
+    if count <= 2:
         line += (
-            f". The front has {info.front.points or len(front)} point(s), so the gap mostly measures how far the "
+            f". The front has {count} point(s), so the gap mostly measures how far the "
             "hypervolume's reference point (derived from the front and the baseline) lies from it"
         )
     console.print(line)

@@ -5,8 +5,9 @@ shared, and by loky rather than by ``multiprocessing`` so that a worker does not
 user's main module: the standard spawn re-imports it, which re-runs a plain script's
 unguarded ``parley.run(...)`` in every worker and cannot import a script read from stdin.
 A worker that dies (a crash in Storm, the memory killer) or cannot start ends its call in
-one :class:`~parley_core.errors.WorkerError`, never a hang. A worker's per-process state (the quotient solver, Storm's parsed program) is set
-by the pool's initializer or filled on first use; that module-level cache, one per worker
+one :class:`~parley_core.errors.WorkerError`, never a hang. A worker's per-process state
+(the quotient solver, Storm's parsed program) is set by the pool's initializer or filled
+on first use; that module-level cache, one per worker
 process, is the one sanctioned exception to "no module state" (docs/architecture.md).
 """
 

@@ -33,10 +33,12 @@ class Prepared:
 def make_family(system: SystemModel, *, prune: bool = False) -> Family:
     """Augment ``system``; with ``prune``, only at the observation valuations where some
     reachable state of some policy consults a service (found on the quotient MDP)."""
+    from parley_core.prism import program as prism
     from parley_core.prism.properties import check_objectives, name_unnamed_rewards
 
-    check_objectives(system)
-    system = name_unnamed_rewards(system)
+    parsed = prism.parse_program(system.prism, origin=f"the {system.name} model")
+    check_objectives(system, parsed)
+    system = name_unnamed_rewards(system, parsed)
     family = augment(system)  # also checks the model before Storm builds its quotient
     if prune:
         from parley_core.quotient.mdp import build_mdp, consulted_valuations

@@ -20,6 +20,7 @@ import stormpy.developer as storm_dev
 from stormpy.developer.storage import PrismBooleanVariable, PrismModelType, PrismProgram
 
 from parley_core.errors import ModelError
+from parley_core.model import IDENTIFIER
 
 
 def quiet_storm() -> None:
@@ -83,7 +84,7 @@ _KEYWORDS = frozenset(
 def _words(text: str, outside_quotes: bool = False) -> set[str]:
     if outside_quotes:
         text = "".join(text.split('"')[::2])  # labels are quoted
-    return set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", text))
+    return set(IDENTIFIER.findall(text))
 
 
 def _hinted(hint: str, message: str) -> str:
@@ -108,7 +109,7 @@ def _undeclared_at(text: str, message: str) -> str:
     if not where or not 0 < int(where[1]) <= len(lines):
         return ""
     column = int(where[2]) - 1
-    words = [m for m in re.finditer(r"[A-Za-z_][A-Za-z0-9_]*", lines[int(where[1]) - 1]) if m.start() <= column]
+    words = [m for m in IDENTIFIER.finditer(lines[int(where[1]) - 1]) if m.start() <= column]
     if not words or words[-1][0] in _KEYWORDS or len(re.findall(rf"\b{words[-1][0]}\b", text)) != 1:
         return ""
     return f"{words[-1][0]!r} (line {where[1]}) is not declared"

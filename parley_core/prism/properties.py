@@ -19,6 +19,7 @@ from attrs import field, frozen
 from parley_core.errors import ModelError
 from parley_core.model import SystemModel
 from parley_core.prism import program as prism
+from parley_core.prism.program import PrismProgram
 
 
 class Shape(enum.Enum):
@@ -74,11 +75,11 @@ def reward_name(formula, program, ignore: Iterable[str] = ()) -> str | None:
     return structures[0] if len(structures) == 1 else None
 
 
-def check_objectives(system: SystemModel) -> None:
-    """Each objective parses on the system's model and names only labels and reward
-    structures it has; a :class:`ModelError` names the objective and what the model has
-    (Storm itself would only stop when building, or say nothing of a missing label)."""
-    program = prism.parse_program(system.prism, origin=f"the {system.name} model")
+def check_objectives(system: SystemModel, program: PrismProgram) -> None:
+    """Each objective parses on the system's model (``program``, parsed) and names only
+    labels and reward structures it has; a :class:`ModelError` names the objective and what
+    the model has (Storm itself would only stop when building, or say nothing of a missing
+    label)."""
     labels = [label.name for label in program.labels]
     for objective in system.objectives:
         origin = f"objective {objective.name!r}"
@@ -95,11 +96,11 @@ def check_objectives(system: SystemModel) -> None:
             )
 
 
-def name_unnamed_rewards(system: SystemModel) -> SystemModel:
+def name_unnamed_rewards(system: SystemModel, program: PrismProgram) -> SystemModel:
     """The system with every objective ``R=? [...]`` that names no reward structure, in a
-    model with several, naming the first one, as PRISM does (Storm refuses such a property
-    as ambiguous); ``system.notes`` says so. Both evaluators then read the same structure."""
-    program = prism.parse_program(system.prism, origin=f"the {system.name} model")
+    model (``program``, parsed) with several, naming the first one, as PRISM does (Storm
+    refuses such a property as ambiguous); ``system.notes`` says so. Both evaluators then
+    read the same structure."""
     structures = prism.reward_structures(program)
     if len(structures) < 2:
         return system

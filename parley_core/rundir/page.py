@@ -53,9 +53,12 @@ def policy_table(run: RunDirectory) -> tuple[dict[str, list[Any]], list[int], li
     return columns, row_of, constant_of
 
 
-def _front_source(run: RunDirectory, front: np.ndarray, i: int, j: int) -> tuple[dict[str, list[Any]], list[int]]:
+def _front_source(
+    run: RunDirectory, front: np.ndarray, i: int, j: int
+) -> tuple[dict[str, list[Any]], list[int], np.ndarray]:
     """The plot's points, one per tie (:func:`parley_core.metrics.tie_points`): the first
-    policy of each, how many others tie with it and their names; and each point's first row."""
+    policy of each, how many others tie with it and their names; each point's first row;
+    and each row's point (1, 2, ...)."""
     from parley_core import metrics
 
     names = [o.name for o in run.objectives]
@@ -74,24 +77,18 @@ def _front_source(run: RunDirectory, front: np.ndarray, i: int, j: int) -> tuple
     }
     for k, name in enumerate(names):
         data[name] = _finite(shown[:, k])
-    return data, firsts
+    return data, firsts, ties
 
 
 def _notes(run: RunDirectory, i: int, j: int, coloured: int | None) -> str:
     """What the plot leaves out: objectives beyond its axes and colour, and the bound's form."""
-    names = [o.name for o in run.objectives]
-    notes = []
-    if coloured is not None:
-        notes.append(f"colour: {names[coloured]}")
-    left = [n for k, n in enumerate(names) if k not in (i, j, coloured)]
-    if left:
-        notes.append(f"not shown: {', '.join(left)} (front.csv has every objective)")
-    if run.optimality is not None and len(names) > 2:
-        notes.append(
-            f"the certified bound over {len(names)} objectives is drawn as its {len(run.optimality.points)} "
-            "points' outline in the two shown; with three or more objectives it may be only an ideal point"
-        )
-    return "; ".join(notes)
+    from parley_core.views.frontplot import left_out
+
+    if coloured is None:
+        return ""
+    bound = None if run.optimality is None else np.asarray(run.optimality.points, dtype=float)
+    parts = [f"colour: {run.objectives[coloured].name}", left_out(run.objectives, (i, j, coloured), bound)]
+    return "; ".join(part for part in parts if part)
 
 
 STACKED_WIDTH = 620
@@ -127,7 +124,7 @@ def render(run: RunDirectory, stacked: bool = False) -> str:
     i, j = _axes(run)
     all_values = np.array(run.front.values, dtype=float).reshape(-1, len(names))
     base = np.array(run.baseline.values, dtype=float).reshape(-1, len(names))
-    data, firsts = _front_source(run, all_values, i, j)
+    data, firsts, ties = _front_source(run, all_values, i, j)
     front = all_values[firsts] if firsts else all_values[:0]
     source = ColumnDataSource(data, name="front-source")
     tooltips = [("policy", "@policy")] + [(n, f"@{{{n}}}{{0.[0000]}}") for n in names]
@@ -188,15 +185,11 @@ def render(run: RunDirectory, stacked: bool = False) -> str:
     )
     plot.add_tools(HoverTool(renderers=[points], tooltips=None, callback=nearest), TapTool(renderers=[points]))
     knee = run.policy(run.summary.selected)
-    at = [
-        k
-        for k, f in enumerate(firsts)
-        if np.array_equal(all_values[f], all_values[[q.name for q in run.front.policies].index(knee.name)])
-    ]
-    if at:
+    at = int(ties[[q.name for q in run.front.policies].index(knee.name)]) - 1  # the knee's point
+    if len(firsts):
         plot.scatter(
-            [data["x"][at[0]]],
-            [data["y"][at[0]]],
+            [data["x"][at]],
+            [data["y"][at]],
             marker="star",
             size=17,
             fill_color="#ff7f0e",

@@ -42,23 +42,22 @@ def _expect(condition: Any, message: str) -> None:
 
 def check_options(case: CaseStudy) -> None:
     """The options class is a frozen attrs class (options are values: a run's options cannot
-    change under it) and every option has a help text (``parley_core.option(default, help)``),
-    which ``parley options`` and ``--help`` show."""
+    change under it) and every option has a help text (``option(default, help)`` of
+    :mod:`parley.plugin`), which ``parley options`` and ``--help`` show."""
     __tracebackhide__ = True
-    defaults = case.options_type()
     try:
-        defaults.parley_probe = 1
+        case.options_type().parley_probe = 1
+        frozen = False
     except attrs.exceptions.FrozenInstanceError:
-        pass
+        frozen = True
     except AttributeError:  # a slotted class that is not frozen
-        _expect(False, f"{case.name}: the options class {case.options_type.__name__} is not frozen; use @frozen")
-    else:
-        _expect(False, f"{case.name}: the options class {case.options_type.__name__} is not frozen; use @frozen")
+        frozen = False
+    _expect(frozen, f"{case.name}: the options class {case.options_type.__name__} is not frozen; use @frozen")
     unexplained = [f.name for f in case.option_fields() if not str(f.metadata.get("help", "")).strip()]
     _expect(
         not unexplained,
         f"{case.name}: option(s) {', '.join(unexplained)} have no help text; declare them as "
-        "parley_core.option(default, 'what it is')",
+        "option(default, 'what it is') (from parley.plugin)",
     )
 
 

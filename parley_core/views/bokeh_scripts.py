@@ -55,12 +55,11 @@ if (chosen.length > 1) {
   source.selected.indices = [p];
 }
 const values = decisions[p];
-const columns = {};
-for (const key of Object.keys(table.data)) { columns[key] = Array.from(table.data[key]); }
+const columns = table.data;
 for (let d = 0; d < values.length; d++) {
   columns[constant_of[d]][row_of[d]] = values[d];
 }
-table.data = columns;
+table.change.emit();
 // Bokeh's DataTable redraws the rows it shows only when the table itself changes, not when
 // its source's data does (the rows stayed the previous policy's until scrolled)
 grid_table.change.emit();

@@ -50,7 +50,7 @@ def front_figure(
             )
             fig.colorbar(shown, ax=ax, label=f"{objectives[third].name} ({objectives[third].direction.value})")
             ax.annotate(
-                _left_out(objectives, (i, j, third), bound),
+                left_out(objectives, (i, j, third), bound),
                 (0.0, -0.16),
                 xycoords="axes fraction",
                 fontsize=7,
@@ -87,7 +87,7 @@ def front_figure(
     return fig
 
 
-def _left_out(objectives: Sequence[Objective], shown: tuple[int, ...], bound: np.ndarray | None) -> str:
+def left_out(objectives: Sequence[Objective], shown: tuple[int, ...], bound: np.ndarray | None) -> str:
     """The note of a plot of three or more objectives: what it leaves out, and what the
     drawn bound is (its points projected onto the two axes; a single point is only the
     ideal point, sound for each objective alone)."""
