@@ -271,3 +271,35 @@ def test_a_system_without_a_way_out_is_refused_as_singular():
     # two states that pass to each other with probability 1: I - P is singular
     with pytest.raises(RuntimeError):
         ordering.factor(np.array([1.0, -1.0, 1.0, -1.0]), np.array([0, 1, 1, 0]), np.array([0, 2, 4]))
+
+
+def test_gauss_seidel_keeps_sweeping_while_values_still_spread():
+    # a line that the sweeps' order crosses one state a sweep: the change falls fast near the
+    # target, then stays level while the value travels up the line (as on a large robot
+    # map before the success probability has spread over it), then is gone at once
+    length, near = 300, 10
+    stay = np.ones(length)
+    stay[-near:] = 0.3  # each of the last ten passes on 0.3 and loses the rest
+    indptr = np.arange(length + 2, dtype=np.int64)
+    cols = np.append(np.arange(1, length + 1), length).astype(np.int64)  # state i -> i + 1; the target loops
+    vals = np.append(stay, 1.0)
+    rows = np.arange(length, dtype=np.int64)  # from the far end: one state nearer the target a sweep
+    x = np.zeros(length + 1)
+    x[length] = 1.0
+    constant = np.zeros(length + 1)
+    used = kernels.gauss_seidel(indptr, cols, vals, rows, x, constant, 1e-12, 1000, True)
+    assert length <= used <= length + 2 and x[0] == pytest.approx(0.3**near, rel=1e-12)
+    # with too few sweeps for the line it still gives up
+    assert (
+        kernels.gauss_seidel(
+            indptr, cols, vals, rows, np.where(np.arange(length + 1) == length, 1.0, 0.0), constant, 1e-12, 200, True
+        )
+        == -1
+    )
+
+
+def test_the_sweep_budget_grows_with_the_unknowns():
+    from parley_core.quotient import solver
+
+    assert solver.sweep_budget(1_000) == solver.SLOW_SWEEPS
+    assert solver.sweep_budget(100_000) == 100_000 // solver.ROWS_PER_SWEEP > solver.SLOW_SWEEPS

@@ -377,9 +377,10 @@ def gauss_seidel(indptr, cols, vals, rows, x, constant, tolerance, max_sweeps, g
     A state's self-loop is solved for directly (its factor 1 / (1 - loop) computed once; a
     state that only loops keeps its x). Stops when no value moves by more than
     ``tolerance`` relative to its size (absolutely, below 1); returns the sweeps used, or
-    -1 without convergence. With ``give_up``, also -1 as soon as the change's rate over the
-    last :data:`RATE_SWEEPS` sweeps (from sweep :data:`FIRST_GUESS` on) says that twice the
-    sweeps left would not reach the tolerance: a slowly mixing chain (PAYNT's dpm, where a
+    -1 without convergence. With ``give_up``, also -1 as soon as the change's rate (from sweep
+    :data:`FIRST_GUESS` on, the smaller of its rate over the last :data:`RATE_SWEEPS` sweeps
+    and over all sweeps after the first :data:`RATE_SWEEPS`) says that twice the sweeps left would not reach the
+    tolerance: a slowly mixing chain (PAYNT's dpm, where a
     battery runs out with probability 0.01 a step) then goes to a direct solve at once.
     Whether it gives up depends on the equations alone.
     """
@@ -394,6 +395,7 @@ def gauss_seidel(indptr, cols, vals, rows, x, constant, tolerance, max_sweeps, g
         if loop < 1.0:
             scale[i] = 1.0 / (1.0 - loop)
     history = np.zeros(RATE_SWEEPS + 1)
+    early = 0.0
     for sweep in range(max_sweeps):
         change = 0.0
         for i in range(n):
@@ -416,16 +418,24 @@ def gauss_seidel(indptr, cols, vals, rows, x, constant, tolerance, max_sweeps, g
             x[s] = value
         if change <= tolerance:
             return sweep + 1
+        if sweep == RATE_SWEEPS - 1:
+            early = change
         history[sweep % (RATE_SWEEPS + 1)] = change
         if give_up and tolerance > 0.0 and sweep + 1 >= FIRST_GUESS:
+            # the more hopeful of two rates: the last RATE_SWEEPS sweeps' and all sweeps'
+            # since the first RATE_SWEEPS (values spreading over a large map hold the change
+            # up for a while before it falls fast; a slowly mixing chain's falls slowly
+            # throughout)
             before = history[(sweep + 1) % (RATE_SWEEPS + 1)]  # the change RATE_SWEEPS sweeps ago
-            if before > 0.0:
-                if change >= before:
-                    return -1
-                rate = (change / before) ** (1.0 / RATE_SWEEPS)
-                needed = np.log(tolerance / change) / np.log(rate)
-                if needed > 2.0 * (max_sweeps - sweep - 1):
-                    return -1
+            recent = (change / before) ** (1.0 / RATE_SWEEPS) if 0.0 < change < before else 1.0
+            since = sweep - (RATE_SWEEPS - 1)
+            overall = (change / early) ** (1.0 / since) if 0.0 < change < early else 1.0
+            rate = min(recent, overall)
+            if rate >= 1.0:
+                return -1
+            needed = np.log(tolerance / change) / np.log(rate)
+            if needed > 2.0 * (max_sweeps - sweep - 1):
+                return -1
     return -1
 
 

@@ -26,15 +26,36 @@ CERTIFIED = 1e-10
 a value that cannot be certified within it is solved again directly, or left to Storm."""
 CERTIFY_SWEEPS = 2_000
 """Sweeps for the rough solution of the certificate; a chain that needs more gets a direct solve."""
+ROUGH = (1e-3, 1e-6)
+"""The tolerances of the certificate's rough solution, the second where the first leaves a
+residual above 1/2. Any h with residual at most w < 1 bounds the amplification (by
+h / (1 - w)), so a rough h costs only a slightly looser bound: at 1e-3 the 50x50 map's
+residuals stay below 0.05, and the certificate takes half the sweeps it took at 1e-6."""
 REFINEMENTS = 3
 """Rounds of :data:`MORE_SWEEPS` further sweeps when a converged solution is not yet certified."""
 MORE_SWEEPS = 100
 SLOW_SWEEPS = 100
-"""A solve that needs more sweeps than this mixes slowly: its Gauss-Seidel value is far less
-reliable than its last change suggests, and a sparse LU solve is cheaper than certifying it
-(PAYNT's dpm, 2,195 free states: 200 sweeps cost 5 ms, its LU solve with the bound 7 ms, and
-sweeps to a certified value 15 ms). The sweeps give up earlier where the rate at which their
-change falls says they cannot make it (:func:`.kernels.gauss_seidel`'s ``give_up``)."""
+"""The fewest sweeps a solve may use before it gives up as slowly mixing: its Gauss-Seidel
+value is then far less reliable than its last change suggests, and a sparse LU solve is
+cheaper than certifying it (PAYNT's dpm, 1,100 unknowns: its LU solve costs about 55 sweeps,
+and certified sweeps 500). The sweeps give up earlier where the rate at which their change
+falls says they cannot make it (:func:`.kernels.gauss_seidel`'s ``give_up``)."""
+ROWS_PER_SWEEP = 40
+"""A larger system may sweep one more time for every this many unknowns (:func:`sweep_budget`)."""
+
+
+def sweep_budget(unknowns: int) -> int:
+    """The sweeps a solve of ``unknowns`` unknowns may use before it gives up and goes to a
+    direct solve: :data:`SLOW_SWEEPS`, or more where the LU solve costs more than that many
+    sweeps. An LU solve's fill grows faster than its unknowns, so its cost in sweeps grows
+    with them: on a 50x50 robot map's chains (robot_grid, seed 11) it was worth 115 sweeps at
+    2,476 unknowns, 200 at 13,794 and 775 at 34,605 (its factors 28 times as large as the
+    system there), about one sweep per :data:`ROWS_PER_SWEEP` unknowns. With the fixed 100,
+    the rate of the first sweeps, while the values still spread over the map, predicted about
+    170 sweeps where 16-25 sufficed, and 288 of 300 policies of a 50x50 search went to an LU
+    solve costing 10-30 times the sweeps (docs/performance.md). Depends on the size alone, so
+    a value still depends on the policy alone."""
+    return max(SLOW_SWEEPS, unknowns // ROWS_PER_SWEEP)
 
 
 class _Equations:
@@ -193,7 +214,15 @@ class QuotientSolver:
         if not known.slow:
             lumped_ptr, lumped_cols, lumped_vals, lumped_constant = lumped
             sweeps = kernels.gauss_seidel(
-                lumped_ptr, lumped_cols, lumped_vals, rows, x, lumped_constant, TOLERANCE, SLOW_SWEEPS, True
+                lumped_ptr,
+                lumped_cols,
+                lumped_vals,
+                rows,
+                x,
+                lumped_constant,
+                TOLERANCE,
+                sweep_budget(len(rows)),
+                True,
             )
             self.last_sweeps = sweeps
             known.slow = sweeps < 0
@@ -228,8 +257,11 @@ class QuotientSolver:
         ones = np.zeros(count)
         ones[rows] = 1.0
         h = np.zeros(count)
-        kernels.gauss_seidel(indptr, cols, vals, rows, h, ones, 1e-6, CERTIFY_SWEEPS)
-        worst = kernels.residual(indptr, cols, vals, rows, h, ones)
+        for tolerance in ROUGH:
+            kernels.gauss_seidel(indptr, cols, vals, rows, h, ones, tolerance, CERTIFY_SWEEPS)
+            worst = kernels.residual(indptr, cols, vals, rows, h, ones)
+            if worst <= 0.5:
+                break
         return float(h[0] / (1.0 - worst)) if worst <= 0.5 else float("inf")
 
     def _direct(self, lumped, exact, x, known: _Equations, order: np.ndarray) -> float:
