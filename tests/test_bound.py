@@ -307,3 +307,22 @@ def test_a_sub_family_of_one_policy_has_schedulers_that_vote_for_it(foreign):
         assert (votes.sum(axis=1) > 0).tolist() == consulted.tolist()
         assert (votes.argmax(axis=1)[consulted] == policy[consulted]).all()
         assert (np.count_nonzero(votes, axis=1) <= 1).all()
+
+
+@pytest.mark.parametrize("name", ["robot_grid 5x5", "web_ids", "tas", "synchronised"])
+def test_weighted_sums_solved_together_or_on_threads_are_each_solved_alone(name):
+    # one pass of backward induction solves several weightings; how they are grouped and
+    # how many threads solve the groups must not change a value
+    from parley_core.quotient.bounds import RelaxedObjectives
+
+    case = dict(_families())[name]
+    quotient = build_quotient(case)
+    weights = np.random.default_rng(3).random((11, len(case.objectives)))
+    alone = RelaxedObjectives(case, quotient)
+    assert alone.weighted_ok, f"{name}: its objectives should combine by backward induction"
+    view = alone.restrict(np.zeros(len(alone.sizes), dtype=np.int64), alone.sizes - 1)
+    one_by_one = np.concatenate([alone.weighted(view, w[None, :]) for w in weights])
+    together = RelaxedObjectives(case, quotient, threads=2)
+    assert np.isfinite(one_by_one).all()
+    assert np.array_equal(together.weighted(view, weights), one_by_one)
+    assert np.array_equal(alone.weighted(view, weights), one_by_one)

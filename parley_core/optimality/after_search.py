@@ -34,7 +34,8 @@ def outer(family: Family, engine: Evaluator | None, method: BoundMethod | str, s
 
     method = BoundMethod.of(method, cheap=True)
     quotient = engine.quotient if isinstance(engine, QuotientBacked) else build_quotient(family)
-    bounds = RelaxedObjectives(family, quotient)
+    # the weighted sums on as many threads as the evaluator has workers (idle while the bound runs)
+    bounds = RelaxedObjectives(family, quotient, threads=engine.workers if engine is not None else 1)
     found = ideal_point(family, quotient, bounds)
     if method is BoundMethod.IDEAL:
         return found, bounds

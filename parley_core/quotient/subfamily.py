@@ -287,7 +287,7 @@ def compact(state_actions, action_entries, targets, probabilities, allowed, live
     return order, state_ptr, action_of, entry_ptr, out_targets, out_probabilities
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def weighted_horizon(order, state_ptr, action_of, entry_ptr, targets, probabilities, states, rewards, rows, steps,
                      coefficients, horizon, has_until, left, right, until_steps, gain, terminal, initial):  # fmt: skip
     """The best weighted sum (sign space) of step-bounded cumulative rewards (``rows``,
@@ -296,7 +296,9 @@ def weighted_horizon(order, state_ptr, action_of, entry_ptr, targets, probabilit
     gains ``gain``; past the horizon an unbounded one is worth ``terminal[s]``), over all
     schedulers of the sub-family (``compact``'s arrays; history-dependent schedulers too, so
     the value bounds every policy's): backward induction over ``horizon`` steps, with a second
-    value for "not yet reached"."""
+    value for "not yet reached". One weighting in scalars: :func:`weighted_horizons` solves
+    several at once (four times as slow for one, twice as fast a weighting for eight, on a
+    50x50 robot map), with the same arithmetic, so the same values."""
     n_actions = action_of.shape[0]
     b_next = np.zeros(states)
     a_next = np.zeros(states)
@@ -344,6 +346,81 @@ def weighted_horizon(order, state_ptr, action_of, entry_ptr, targets, probabilit
         b_now, b_next = b_next, b_now
         a_now, a_next = a_next, a_now
     return a_next[initial] if has_until else b_next[initial]
+
+
+@njit(cache=True, nogil=True)
+def weighted_horizons(order, state_ptr, action_of, entry_ptr, targets, probabilities, states, rewards, rows, steps,
+                      coefficients, horizon, has_until, left, right, until_steps, gains, reach, initial):  # fmt: skip
+    """Per weighting w, the best weighted sum (sign space) of step-bounded cumulative rewards
+    (``rows``, ``steps``; reward k weighs ``coefficients[w, k]``) and at most one
+    reachability objective (``left U right`` within ``until_steps`` steps, or unbounded: -1;
+    reaching ``right`` gains ``gains[w]``; past the horizon an unbounded one is worth
+    ``gains[w] * reach[s]``), over all schedulers of the sub-family (``compact``'s arrays;
+    history-dependent schedulers too, so the value bounds every policy's): backward
+    induction over ``horizon`` steps, with a second value for "not yet reached".
+
+    All weightings in one pass over the transitions per step: a state's values of every
+    weighting side by side (columns ``w``, and ``W + w`` for "not yet reached"), so a
+    transition is read once for all of them (a weighting's arithmetic, and so its value,
+    is the same whatever others it is solved with, and :func:`weighted_horizon`'s for it
+    alone). Without the GIL: threads may solve parts of the weightings at once."""
+    w_count = coefficients.shape[0]
+    width = 2 * w_count if has_until else w_count
+    after = np.zeros((states, width))  # values at t + 1: "reached or not" (b) and "not yet" (a)
+    now = np.zeros((states, width))
+    active = np.zeros(rows.shape[0], dtype=np.bool_)
+    base = np.empty((action_of.shape[0], rows.shape[0]))  # each action's rewards, in action order
+    for j in range(action_of.shape[0]):
+        for k in range(rows.shape[0]):
+            base[j, k] = rewards[rows[k], action_of[j]]
+    v = np.zeros(width)
+    best = np.zeros(width)
+    for t in range(horizon, -1, -1):
+        for k in range(rows.shape[0]):
+            active[k] = t < steps[k]
+        for i in range(order.shape[0]):
+            s = order[i]
+            for c in range(width):
+                best[c] = -np.inf
+            for j in range(state_ptr[i], state_ptr[i + 1]):
+                for w in range(w_count):
+                    v[w] = 0.0
+                for k in range(rows.shape[0]):
+                    if active[k]:
+                        r = base[j, k]
+                        for w in range(w_count):
+                            v[w] += coefficients[w, k] * r
+                if has_until:
+                    for w in range(w_count):
+                        v[w_count + w] = v[w]
+                if t < horizon:
+                    for e in range(entry_ptr[j], entry_ptr[j + 1]):
+                        p = probabilities[e]
+                        u = targets[e]
+                        for c in range(width):
+                            v[c] += p * after[u, c]
+                for c in range(width):
+                    best[c] = max(best[c], v[c])
+            for w in range(w_count):
+                now[s, w] = best[w]
+            if not has_until:
+                continue
+            for w in range(w_count):
+                if until_steps >= 0 and t > until_steps:
+                    now[s, w_count + w] = best[w]
+                elif right[s]:
+                    now[s, w_count + w] = gains[w] + best[w]
+                elif not left[s] or (until_steps >= 0 and t == until_steps):
+                    now[s, w_count + w] = best[w]
+                elif t == horizon and until_steps < 0:
+                    now[s, w_count + w] = gains[w] * reach[s] + best[w]
+                else:
+                    now[s, w_count + w] = best[w_count + w]
+        now, after = after, now
+    out = np.empty(w_count)
+    for w in range(w_count):
+        out[w] = after[initial, w_count + w] if has_until else after[initial, w]
+    return out
 
 
 @njit(cache=True)
