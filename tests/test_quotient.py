@@ -261,3 +261,22 @@ def test_looking_choices_up_keeps_the_choices_a_test_of_each_keeps(name):
     looked_up = (fast.chain.lookup[0] >= 0).any()
     # synchronised: every labelled choice reads two decisions, so each is tested as before
     assert looked_up == (name != "synchronised"), looked_up
+
+
+def test_a_large_batch_is_cut_into_chunks_by_the_time_a_policy_took():
+    from parley_core.evaluate import quotient as module
+
+    fam = case_family("robot_grid", ["size=4", "seed=1", "max_interval=2"])
+    evaluator = QuotientEvaluator(fam, workers=2)
+    fewest, most = (2 * c for c in module.CHUNKS)
+    assert evaluator._chunks(100) == fewest  # nothing timed yet
+    evaluator._per_policy = 0.03  # a 50x50 map's: a chunk a policy would do, up to the most
+    assert evaluator._chunks(100) == most
+    evaluator._per_policy = 0.0015  # map_10's: 14 policies a chunk
+    assert evaluator._chunks(100) == max(fewest, -(-100 // 14))
+    rows = fam.random(np.random.default_rng(2), module.START_WORKERS).astype(np.int64)
+    with evaluator:
+        timed = evaluator.evaluate(rows)
+    assert evaluator._per_policy is not None and evaluator._per_policy > 0
+    with QuotientEvaluator(fam, workers=1) as alone:
+        assert np.array_equal(timed, alone.evaluate(rows))
