@@ -379,9 +379,9 @@ def gauss_seidel(indptr, cols, vals, rows, x, constant, tolerance, max_sweeps, g
     ``tolerance`` relative to its size (absolutely, below 1); returns the sweeps used, or
     -1 without convergence. With ``give_up``, also -1 as soon as the change's rate (from sweep
     :data:`FIRST_GUESS` on, the smaller of its rate over the last :data:`RATE_SWEEPS` sweeps
-    and over all sweeps after the first :data:`RATE_SWEEPS`) says that twice the sweeps left would not reach the
-    tolerance: a slowly mixing chain (PAYNT's dpm, where a
-    battery runs out with probability 0.01 a step) then goes to a direct solve at once.
+    and over all sweeps after the first :data:`RATE_SWEEPS`) says that twice the sweeps left
+    would not reach the tolerance: a slowly mixing chain (PAYNT's dpm, where a battery runs
+    out with probability 0.01 a step) then goes to a direct solve at once.
     Whether it gives up depends on the equations alone.
     """
     n = rows.shape[0]

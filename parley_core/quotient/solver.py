@@ -213,16 +213,9 @@ class QuotientSolver:
         rows = np.flatnonzero(free & (through < 0))[::-1].copy()
         if not known.slow:
             lumped_ptr, lumped_cols, lumped_vals, lumped_constant = lumped
+            budget = sweep_budget(len(rows))
             sweeps = kernels.gauss_seidel(
-                lumped_ptr,
-                lumped_cols,
-                lumped_vals,
-                rows,
-                x,
-                lumped_constant,
-                TOLERANCE,
-                sweep_budget(len(rows)),
-                True,
+                lumped_ptr, lumped_cols, lumped_vals, rows, x, lumped_constant, TOLERANCE, budget, True
             )
             self.last_sweeps = sweeps
             known.slow = sweeps < 0

@@ -297,7 +297,7 @@ def weighted_horizon(order, state_ptr, action_of, entry_ptr, targets, probabilit
     schedulers of the sub-family (``compact``'s arrays; history-dependent schedulers too, so
     the value bounds every policy's): backward induction over ``horizon`` steps, with a second
     value for "not yet reached". One weighting in scalars: :func:`weighted_horizons` solves
-    several at once (four times as slow for one, twice as fast a weighting for eight, on a
+    several at once (three times as slow for one, twice as fast a weighting for eight, on a
     50x50 robot map), with the same arithmetic, so the same values."""
     n_actions = action_of.shape[0]
     b_next = np.zeros(states)
