@@ -9,15 +9,17 @@ The run directory is written from the :class:`RunResult` by :mod:`parley_core.ru
 from __future__ import annotations
 
 import functools
+import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+import attrs
 import numpy as np
 from attrs import field, frozen
 
 from parley_core import metrics, robust
-from parley_core.constraints import meets
-from parley_core.errors import OptionError, SearchError
+from parley_core.constraints import Constraint, meets
+from parley_core.errors import OptionError, ParleyDefect, SearchError
 from parley_core.evaluate import Evaluator, EvaluatorKind, evaluate_policies, make_evaluator
 from parley_core.evaluate.cache import CachingEvaluator
 from parley_core.family.prepare import Prepared
@@ -32,6 +34,7 @@ from parley_core.verify import Verification, VerifyPath, by_search, check_with_s
 if TYPE_CHECKING:
     from parley_core.optimality.bound import Bound
     from parley_core.optimality.branch_and_bound import ExactResult
+    from parley_core.optimality.requirement import Answer
 
 
 @frozen(kw_only=True)
@@ -118,8 +121,14 @@ def run(
     engine.close()
     candidates, values = steps.candidates(searched)
     checked = steps.verify(engine, searched.baseline, candidates, values, verify, verify_with)
+    return _result(steps, engine, searched, checked, steps.certified_bound(engine, searched))
+
+
+def _result(steps: _Steps, engine: Evaluator, searched: _Searched, checked: _Checked, found: Bound | None) -> RunResult:
+    """The run's result from its verified candidates: the front Storm's values decide, its
+    reference point and knee."""
+    prepared, settings = steps.prepared, steps.settings
     front, baseline_each, front_each = steps.front(checked)
-    found = steps.certified_bound(engine, searched)
     objectives = prepared.family.objectives
     reference = metrics.reference_point(objectives, np.array(front.values), np.array(checked.baseline.values))
     return RunResult(
@@ -138,7 +147,7 @@ def run(
         bound=found,
         baseline_scenarios=baseline_each,
         front_scenarios=front_each,
-        warm_start=len(warm),
+        warm_start=len(steps.warm),
     )
 
 
@@ -184,6 +193,7 @@ class _Steps:
         bound_time: float | None,
         warm: Sequence[Policy],
     ) -> None:
+        self.prepared = prepared
         self.family = family = prepared.family
         if not family.objectives:
             raise OptionError("the model has no objectives to optimize; give a properties file")
@@ -353,3 +363,87 @@ class _Steps:
 
 def _best(column: np.ndarray, objective) -> float:
     return float(column.max() if objective.direction is objective.direction.MAX else column.min())
+
+
+@frozen(kw_only=True)
+class CheckResult:
+    """A requirement's answer (:func:`check`): branch and bound's :class:`~parley_core.optimality.requirement.Answer`
+    and, where it is feasible, the run of the policies inside the box, their values Storm's."""
+
+    prepared: Prepared
+    answer: Answer
+    run: RunResult | None
+    timings: dict[str, float]
+
+    @property
+    def family(self) -> Family:
+        return self.prepared.family
+
+
+SEARCH_SHARE = 0.25
+"""Of a check's time limit, what the search before branch and bound may take at most."""
+INSIDE = 16
+"""A feasible check verifies and writes at most this many of the policies found inside the box,
+evenly spaced along their front (map_10's default search finds about 1,100 inside success >= 0.8,
+cost <= 60)."""
+
+
+def check(
+    prepared: Prepared,
+    settings: SearchSettings,
+    requirements: Sequence[Constraint],
+    *,
+    time_limit: float | None = None,
+    workers: int | None = None,
+    reporter: Reporter | None = None,
+    verify_with: str | VerifyPath = VerifyPath.BATCH,
+) -> CheckResult:
+    """Is there a policy of the family inside the box ``requirements`` make? The baselines and
+    a search that prefers policies meeting them (at most :data:`SEARCH_SHARE` of
+    ``time_limit``), then branch and bound driven by the box
+    (:mod:`parley_core.optimality.requirement`) for the time left, started from what the
+    search found. Feasible: the policies found inside the box are verified by Storm and make
+    the run; infeasible: the answer holds the certificate; unknown: the share of the family
+    left open."""
+    from parley_core.optimality.requirement import Requirement, Verdict
+
+    reporter = reporter or NullReporter()
+    requirement = Requirement.of(prepared.family, requirements)
+    if prepared.scenarios:
+        raise OptionError("parley check does not take --scenarios yet (branch and bound works on one model)")
+    began = time.perf_counter()
+    if time_limit is not None:
+        share = SEARCH_SHARE * time_limit
+        settings = attrs.evolve(settings, time_limit=min(settings.time_limit or share, share))
+    # the search and the front keep what meets the box to the tolerance, as branch and bound does
+    settings = attrs.evolve(settings, constraints=requirement.relaxed())
+    steps = _Steps(
+        prepared, settings, kind=EvaluatorKind.QUOTIENT, workers=workers, reporter=reporter,
+        bound=BoundMethod.NONE, bound_time=None, warm=(),
+    )  # fmt: skip
+    engine = steps.evaluator()
+    try:
+        searched = steps.search(engine)
+        left = None if time_limit is None else max(0.0, time_limit - (time.perf_counter() - began))
+        with timed(steps.timings, "bound"):
+            found = run_bounds.answer(prepared.family, engine, requirement, searched.result, left, reporter)
+    except BaseException:
+        engine.close(abort=True)
+        raise
+    engine.close()
+    if found.verdict is not Verdict.FEASIBLE:
+        return CheckResult(prepared=prepared, answer=found, run=None, timings=steps.timings)
+    searched = attrs.evolve(searched, refined=found.result)
+    candidates, values = steps.candidates(searched)
+    if len(candidates) > INSIDE:  # a few policies across the box's part of the front, not all of it
+        order = np.lexsort(tuple(values[:, i] for i in reversed(range(values.shape[1]))))
+        chosen = order[np.unique(np.linspace(0, len(order) - 1, INSIDE).round().astype(int))]
+        candidates, values = candidates[chosen], values[chosen]
+    checked = steps.verify(engine, searched.baseline, candidates, values, True, verify_with)
+    if not meets(checked.values, steps.names, settings.constraints).any():
+        raise ParleyDefect(
+            f"the quotient evaluator found policies inside {requirement}, and Storm's values put none of them "
+            "there; please report it with the command"
+        )
+    result = _result(steps, engine, searched, checked, None)
+    return CheckResult(prepared=prepared, answer=found, run=result, timings=steps.timings)

@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from parley_core.api.runs import Run, load
+from parley_core.api.runs import Check, Run, load
 from parley_core.constraints import Constraint
 from parley_core.errors import OptionError
 from parley_core.evaluate import EvaluatorKind
@@ -175,6 +175,144 @@ def exact(
             bound="refine",
             bound_time=time_limit,
         )
+
+
+CHECK_SECONDS = 300.0
+"""A check's time limit when none is given."""
+
+
+def check(
+    case: str,
+    require: Iterable[str | Constraint],
+    *,
+    time_limit: float | None = CHECK_SECONDS,
+    seed: int = 1,
+    generations: int | None = None,
+    workers: int | None = None,
+    out: str | Path | None = None,
+    force: bool = False,
+    progress: bool | Reporter = True,
+    options: Mapping[str, Any] | None = None,
+    command: str | None = None,
+    **more_options: Any,
+) -> Check:
+    """``parley check CASE --require ...``: is there a policy of the case study's family that
+    meets every requirement (``"success>=0.8"``, ``"cost<=60"``)? Within ``time_limit``
+    seconds (None: until answered) the answer is "feasible" (a policy inside, verified by
+    Storm, written as a run directory with its controller), "infeasible" (a certificate) or
+    "unknown"; see :class:`~parley_core.api.runs.Check`."""
+    assignments = assignments_of({**(options or {}), **more_options})
+    return _checked(
+        lambda r: prepare_case(case, assignments, r),
+        require,
+        Path(out) if out is not None else default_out(f"{case}-check"),
+        progress,
+        dict(seed=seed, generations=generations, time_limit=time_limit, workers=workers, force=force, command=command),
+    )
+
+
+def check_model(
+    model: str | Path,
+    require: Iterable[str | Constraint],
+    *,
+    props: str | Path,
+    decisions: Mapping[str, tuple[int, int] | str] | Sequence[str],
+    observe: Sequence[str] = (),
+    maximize: Sequence[str] = (),
+    minimize: Sequence[str] = (),
+    time_limit: float | None = CHECK_SECONDS,
+    seed: int = 1,
+    generations: int | None = None,
+    workers: int | None = None,
+    out: str | Path | None = None,
+    force: bool = False,
+    progress: bool | Reporter = True,
+    command: str | None = None,
+) -> Check:
+    """:func:`check` for your own PRISM DTMC, with :func:`synthesize`'s arguments."""
+    path = Path(model)
+    return _checked(
+        synthesis_preparer(path, Path(props), decisions, observe, maximize, minimize, None),
+        require,
+        Path(out) if out is not None else default_out(f"{path.stem}-check"),
+        progress,
+        dict(
+            seed=seed,
+            generations=generations,
+            time_limit=time_limit,
+            workers=workers,
+            force=force,
+            command=command,
+            model={
+                "path": str(path.resolve()),
+                "props": str(Path(props).resolve()),
+                "decisions": decision_specs(decisions),
+                "observe": list(observe),
+                "maximize": list(maximize),
+                "minimize": list(minimize),
+            },
+        ),
+    )
+
+
+def recheck(directory: str | Path) -> int:
+    """``parley recheck DIR``: check the certificate of an infeasible answer again from the
+    family alone (built again from the case study and options, or the model, ``check.json``
+    names): returns how many sub-families it holds; a certificate that does not hold is a
+    :class:`~parley_core.errors.ParleyDefect` naming the first that fails."""
+    import json
+
+    import numpy as np
+
+    from parley_core.api.runs import load_check
+    from parley_core.optimality.requirement import read_certificate
+    from parley_core.optimality.requirement import recheck as recheck_certificate
+    from parley_core.progress import NullReporter
+    from parley_core.quotient.coloring import build_quotient
+    from parley_core.quotient.solver import QuotientSolver
+
+    found = load_check(directory)
+    if found.answer != "infeasible" or found.certificate is None:
+        raise OptionError(f"the check in {found.directory} is {found.answer}: it has no certificate to check again")
+    document = found.document
+    model = document.get("model")
+    if model is not None:
+        preparer = synthesis_preparer(
+            Path(model["path"]), Path(model["props"]), model["decisions"], model["observe"], model["maximize"],
+            model["minimize"], None,
+        )  # fmt: skip
+        family = preparer(NullReporter()).family
+    else:
+        family = prepare_case(document["case_study"], assignments_of(document.get("options", {}))).family
+    requirement, closed = read_certificate(family, json.loads(found.certificate.read_text()))
+    quotient = build_quotient(family)
+    solver = QuotientSolver(quotient)
+    recheck_certificate(
+        family, quotient, requirement, closed, lambda rows: np.array([solver.solve(row) for row in rows], dtype=float)
+    )
+    return len(closed)
+
+
+def _checked(prepare_with, require, out: Path, progress: bool | Reporter, how: dict[str, Any]) -> Check:
+    from parley_core.api.runs import load_check
+    from parley_core.pipeline import check as run_check
+    from parley_core.rundir.check import write_check
+    from parley_core.rundir.write import check_output
+
+    requirements = constraints_of(require)
+    if not requirements:
+        raise OptionError("give at least one requirement, e.g. --require success>=0.8")
+    check_output(out, how["force"])
+    generations = how["generations"]
+    settings = search_settings(seed=how["seed"], generations=generations)
+    with reporting(progress) as reporter:
+        prepared = prepare_with(reporter)
+        result = run_check(
+            prepared, settings, requirements, time_limit=how["time_limit"], workers=how["workers"], reporter=reporter
+        )
+        reporter.stage("write")
+        write_check(result, out, force=how["force"], command=how["command"], model=how.get("model"))
+    return load_check(out)
 
 
 def synthesize(

@@ -18,6 +18,7 @@ import numpy as np
 from attrs import field, frozen
 
 from parley_core.constraints import Constraint
+from parley_core.errors import OptionError, PolicyError
 from parley_core.model import Front, Objective, Policy, Valued
 from parley_core.rundir import read
 from parley_core.rundir.read import Optimality
@@ -244,4 +245,61 @@ def load(directory: str | Path, *, result: RunResult | None = None) -> Run:
         optimality=files.optimality,
         files=files,
         result=result,
+    )
+
+
+@frozen(kw_only=True)
+class Check:
+    """A requirement's answer, as ``parley check`` writes it (``check.json`` in
+    :attr:`directory`): ``answer`` is "feasible" (:attr:`policy` meets the requirement, its
+    :attr:`values` Storm's; :attr:`run` is the run directory of the policies found inside the
+    box), "infeasible" (:attr:`certificate` names the file that proves no policy of the
+    family does) or "unknown" (:attr:`open_share` of the family was left open in the time
+    limit)."""
+
+    answer: str
+    requirement: tuple[str, ...] = field(converter=tuple[str, ...])
+    directory: Path
+    policy: str | None = None
+    values: Mapping[str, float] | None = field(default=None, hash=False)
+    certificate: Path | None = None
+    open_share: float | None = None
+    run: Run | None = field(default=None, eq=False)
+    document: Mapping[str, Any] = field(converter=_mapping, eq=False, repr=False, factory=dict)
+
+    @property
+    def feasible(self) -> bool:
+        return self.answer == "feasible"
+
+    def controller(self) -> URC:
+        """The feasible policy's runtime URC (``controller.json``)."""
+        if self.run is None or self.policy is None:
+            raise PolicyError(f"the check in {self.directory} is {self.answer}: it has no policy to control with")
+        from parley_core.rundir.select import controller
+
+        return controller(self.run.files, self.policy)
+
+
+def load_check(directory: str | Path) -> Check:
+    """The :class:`Check` of a directory ``parley check`` wrote."""
+    import json
+
+    path = Path(directory)
+    try:
+        document = json.loads((path / "check.json").read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise OptionError(
+            f"{path} holds no readable check.json ({exc}); give a directory `parley check` wrote"
+        ) from None
+    policy = document.get("policy")
+    return Check(
+        answer=str(document["answer"]),
+        requirement=tuple(document["requirement"]),
+        directory=path,
+        policy=None if policy is None else str(policy["name"]),
+        values=None if policy is None else _mapping(policy["values"]),
+        certificate=path / "certificate.json" if document["answer"] == "infeasible" else None,
+        open_share=document.get("open_share"),
+        run=load(path) if policy is not None else None,
+        document=document,
     )

@@ -7,7 +7,7 @@ is one JSON document and nothing else.
 - :mod:`.app`: the typer applications; :mod:`.common`: errors, case studies, limits;
   :mod:`.options`: the option types; :mod:`.console`: progress bars and tables;
 - command groups: :mod:`.case_studies` (list, options), :mod:`.synthesis` (run,
-  synthesize, augment), :mod:`.controllers` (select, simulate, validate), :mod:`.adaptation` (adapt, and
+  synthesize, augment), :mod:`.requirements` (check, check-model, recheck), :mod:`.controllers` (select, simulate, validate), :mod:`.adaptation` (adapt, and
   simulate's drift mode), :mod:`.evaluation`
   (evaluate, baseline), :mod:`.experiment` (experiment run, verify, report, scalability).
 """
@@ -18,7 +18,7 @@ import os
 import sys
 import warnings
 
-from parley_core.cli import adaptation, case_studies, controllers, evaluation, experiment, synthesis  # noqa: F401, I001  (they register commands, in this order)
+from parley_core.cli import adaptation, case_studies, controllers, evaluation, experiment, requirements, synthesis  # noqa: F401, I001  (they register commands, in this order)
 from parley_core.cli.app import app
 from parley_core.errors import PluginWarning
 

@@ -15,6 +15,7 @@ from parley_core.progress import Reporter
 
 if TYPE_CHECKING:
     from parley_core.optimality.bound import Bound
+    from parley_core.optimality.requirement import Answer, Requirement
     from parley_core.search import SearchResult
 
 
@@ -50,15 +51,10 @@ def outer(family: Family, engine: Evaluator | None, method: BoundMethod | str, s
     return attrs.evolve(cut, method=f"{cut.method}; {found.method}", belief=found.belief), bounds
 
 
-def refine(family: Family, engine: Evaluator, result: SearchResult, seconds: float | None, reporter: Reporter, cheap):
-    """Branch and bound after the search, seeded with everything the search evaluated and
-    started from the cheap bound's half-spaces (``cheap``: what :func:`outer` returns); with
-    the seeds' values as branch and bound took them (:meth:`QuotientEvaluator.box_seeds`)."""
-    from parley_core.optimality.branch_and_bound import branch_and_bound
-
-    found, bounds = cheap
+def _progress(reporter: Reporter, stage: str):
+    """A progress callback that advances ``reporter``'s new stage by fractions of 1,000 steps."""
     steps = 1000
-    reporter.stage("branch and bound", steps)
+    reporter.stage(stage, steps)
     done = 0
 
     def progress(fraction: float) -> None:
@@ -68,6 +64,51 @@ def refine(family: Family, engine: Evaluator, result: SearchResult, seconds: flo
             reporter.advance(now - done)
             done = now
 
+    return progress
+
+
+def answer(
+    family: Family,
+    engine: Evaluator,
+    requirement: Requirement,
+    result: SearchResult,
+    seconds: float | None,
+    reporter: Reporter,
+) -> Answer:
+    """Branch and bound driven by a requirement's box (:mod:`parley_core.optimality.requirement`),
+    seeded with everything the search evaluated, for at most ``seconds``."""
+    from parley_core.optimality.requirement import answer as answer_box
+    from parley_core.quotient.bounds import RelaxedObjectives
+    from parley_core.quotient.coloring import build_quotient
+
+    progress = _progress(reporter, "branch and bound (requirement)")
+    boxes = engine if isinstance(engine, QuotientBacked) else None
+    quotient = boxes.quotient if boxes is not None else build_quotient(family)
+    seeds = (result.policies, result.values)
+    if boxes is not None:
+        seeds = boxes.box_seeds(*seeds)
+    return answer_box(
+        family,
+        quotient,
+        engine.evaluate,
+        requirement,
+        seeds=seeds,
+        time_limit=seconds,
+        progress=progress,
+        bounds=RelaxedObjectives(family, quotient, threads=engine.workers),
+        fronts=boxes.submit_box_fronts if boxes is not None else None,
+        whole=boxes is not None and boxes.walks_boxes(),
+    )
+
+
+def refine(family: Family, engine: Evaluator, result: SearchResult, seconds: float | None, reporter: Reporter, cheap):
+    """Branch and bound after the search, seeded with everything the search evaluated and
+    started from the cheap bound's half-spaces (``cheap``: what :func:`outer` returns); with
+    the seeds' values as branch and bound took them (:meth:`QuotientEvaluator.box_seeds`)."""
+    from parley_core.optimality.branch_and_bound import branch_and_bound
+
+    found, bounds = cheap
+    progress = _progress(reporter, "branch and bound")
     seeds = (result.policies, result.values)
     boxes = engine if isinstance(engine, QuotientBacked) else None
     if boxes is not None:

@@ -349,6 +349,9 @@ class BranchAndBound:
                     self.stopped_by = Stopped.TIME
                     break
                 batches.harvest(wait=False)
+                if self._finished():
+                    self.stopped_by = Stopped.FOUND
+                    break
                 if self.fronts is not None and not batches.inflight:  # the evaluator is idle: give it what is pending
                     batches.flush()
                 _, _, node = heapq.heappop(self.stack)
@@ -358,6 +361,8 @@ class BranchAndBound:
             self.working = None
             batches.flush()
             batches.harvest(wait=True)
+            if self.stopped_by is Stopped.COMPLETE and self._finished():
+                self.stopped_by = Stopped.FOUND
         except KeyboardInterrupt:  # Ctrl-C: the front and the bound so far, as with a time limit
             self.stopped_by = Stopped.INTERRUPTED
             self.stack.extend((0.0, -next(self.counter), n) for n in batches.reopen())
@@ -365,7 +370,8 @@ class BranchAndBound:
 
     def _visit(self, node: Node) -> None:
         share = node.size()
-        if node.ideal is not None and not len(self.kept.archive.open_corners(node.ideal, list(node.cuts))):
+        if node.ideal is not None and not len(self._open(node.ideal, node.cuts)):
+            self._closed(node, node.ideal, node.cuts)
             self._resolve(share, pruned=True)
             return
         bounds = self.bounds
@@ -376,17 +382,20 @@ class BranchAndBound:
         width = hi - lo + 1
         if math.prod(int(w) for w in width) <= self.costs.leaf_size(self.leaf, self.adaptive):
             self.batches.queue(lo, hi, node)
+            self._closed(node, None, (), evaluated=hi)
             self._resolve(share)
             return
         ideal, cuts, corners = self._bound(node, view)
         if not len(corners):
+            self._closed(node, ideal, cuts)
             self._resolve(share, pruned=True)
             return
         votes = self._try_schedulers(view, lo)
         d, middle = self._split_point(votes, np.where(consulted, width, 0), lo, hi)
+        lo, hi = self._spans(node, lo, hi)
         upper_lo, lower_hi = lo.copy(), hi.copy()
         upper_lo[d], lower_hi[d] = middle + 1, middle
-        self._resolve(share - math.prod(int(w) for w in width))  # what collapsed decisions repeat
+        self._resolve(share - math.prod(int(b - a + 1) for a, b in zip(lo, hi)))  # what collapsed decisions repeat
         # until a first leaf is evaluated, depth first: its time sets the adaptive leaf size
         # (nodes bounded best first before that would be split far finer than they need,
         # while the workers wait); of equal priorities the latest first
@@ -407,21 +416,45 @@ class BranchAndBound:
             spread = ideal - archive.points.min(axis=0) if len(archive.points) else np.ones(len(self.signs))
             self.scale = np.where(np.isfinite(spread) & (spread > 0), spread, 1.0)
         cuts = list(node.cuts)
-        corners = archive.open_corners(ideal, cuts)
-        for _ in range(CUTS if bounds.combines else 0):
-            if not len(corners):
+        corners = self._open(ideal, cuts)
+        for attempt in range(CUTS if bounds.combines else 0):
+            weights = self._aim(ideal, corners, attempt) if len(corners) else None
+            if weights is None:
                 break
-            gaps = ideal[None, :] - corners
-            if not np.isfinite(gaps).all(axis=1).any():
-                break
-            corner = corners[np.argmax(np.where(np.isfinite(gaps), gaps, -np.inf).min(axis=1))]
-            weights = 1.0 / np.maximum(ideal - corner, 1e-12)
-            weights /= weights.max()
             cuts.append((weights, float(bounds.weighted(view, weights)[0])))
-            corners = archive.open_corners(ideal, cuts)
+            corners = self._open(ideal, cuts)
         self.costs.bound_seconds += time.perf_counter() - began
         self.costs.bounds += 1
         return ideal, tuple(cuts), corners
+
+    def _open(self, ideal: np.ndarray, cuts) -> np.ndarray:
+        """The points a region (ideal box and half-spaces) must still be searched for: the
+        archive's corners it reaches beyond (none: the node is pruned)."""
+        return self.kept.archive.open_corners(ideal, list(cuts))
+
+    def _aim(self, ideal: np.ndarray, corners: np.ndarray, attempt: int) -> np.ndarray | None:
+        """The weights of the next weighted sum to bound a node by: aimed at the open corner
+        farthest inside the ideal box (None: no corner has a finite distance)."""
+        gaps = ideal[None, :] - corners
+        if not np.isfinite(gaps).all(axis=1).any():
+            return None
+        corner = corners[np.argmax(np.where(np.isfinite(gaps), gaps, -np.inf).min(axis=1))]
+        weights = 1.0 / np.maximum(ideal - corner, 1e-12)
+        return weights / weights.max()
+
+    def _spans(self, node: Node, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """What a split node's children share between them: its decisions with those no state
+        consults collapsed to one value (``lo..hi``), which the search need not repeat."""
+        return lo, hi
+
+    def _finished(self) -> bool:
+        """Whether the search may stop before every node is closed (never, for a front)."""
+        return False
+
+    def _closed(self, node: Node, ideal, cuts, evaluated: np.ndarray | None = None) -> None:
+        """A node is closed: pruned by its bound (``ideal`` and ``cuts``), or queued to be
+        evaluated with its decisions up to ``evaluated`` (those no state consults collapsed);
+        what a search that proves something of each node records."""
 
     def _try_schedulers(self, view, lo: np.ndarray) -> list[np.ndarray]:
         """Where the bounds know their schedulers, each is tried as a policy (by the value each

@@ -56,6 +56,8 @@ class Stopped(enum.Enum):
     """Its time limit."""
     INTERRUPTED = "interrupted"
     """Ctrl-C."""
+    FOUND = "found"
+    """A policy inside the requirement's box (``parley check``): nothing more is asked."""
 
 
 @frozen(kw_only=True)

@@ -219,7 +219,9 @@ class RelaxedObjectives:
             values = self._mixed(view, weights)
         else:
             return np.full(len(weights), np.inf)
-        return values + WIDEN * np.abs(weights).sum(axis=1) * np.maximum(1.0, np.abs(values))
+        with np.errstate(invalid="ignore"):  # -inf (no scheduler has a finite sum) stays -inf
+            widened = values + WIDEN * np.abs(weights).sum(axis=1) * np.maximum(1.0, np.abs(values))
+        return np.where(np.isneginf(values), values, widened)
 
     def _summed(self, view: Restricted, weights: np.ndarray) -> np.ndarray:
         """Minimised expected rewards to one target: per row of weights, minus a lower bound of

@@ -324,7 +324,7 @@ def write_run(result: RunResult, out: Path, *, force: bool = False) -> list[Path
         if case.policy_map is not None:
             _policy_map(case, result, staging)
         _interactive_report(staging)
-        _move_into_place(staging, out)
+        move_into_place(staging, out)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
@@ -358,7 +358,7 @@ def _interactive_report(staging: Path) -> None:
         )
 
 
-def _move_into_place(staging: Path, out: Path) -> None:
+def move_into_place(staging: Path, out: Path) -> None:
     if out.exists():
         old = out.with_name(f".{out.name}.old")
         shutil.rmtree(old, ignore_errors=True)
