@@ -300,3 +300,49 @@ def test_the_scalability_row_measures_both_evaluators_on_the_same_policies():
     )
     table = table3_markdown([row])
     assert "size=3 seed=1 max_interval=3" in table.splitlines()[-1]
+
+
+@pytest.mark.slow
+def test_campaign_cells_are_answered_as_enumeration_says_and_counted_in_the_report(tmp_path):
+    """``experiment check`` on a campaign of two small maps: every cell's answer is what
+    enumerating the family says (a feasible one's values are Storm's and inside the box), a
+    second call answers nothing again, and Table 2 and its CSV count them per setting."""
+    import itertools
+
+    import parley
+    from parley_core.experiment.store import Store
+    from parley_core.quotient.coloring import build_quotient
+    from parley_core.quotient.solver import QuotientSolver
+    from parley_core.testing import family
+
+    store = tmp_path / "c.sqlite"
+    options = {"max_interval": 2, "horizon": 30}
+    campaign = parley.experiment(
+        "robot_grid", store=store, grid=["size=3", "seed=1,2"], options=options, reps=1, population=6,
+        generations=1, workers=1, progress=False,
+    )  # fmt: skip
+    campaign.bound(workers=1, progress=False)
+    settings = [(0.5, 20.0), (0.9, 20.0), (0.99, 5.0), (0.3, 100.0)]
+    assert campaign.check(settings=settings, workers=1, progress=False, seconds=60) == 8
+    assert campaign.check(settings=settings, workers=1, progress=False) == 0  # stored: skipped
+    with Store(store) as results:
+        answers = results.answers("robot_grid")
+    seen = set()
+    for seed in (1, 2):
+        fam = family("robot_grid", ["size=3", f"seed={seed}", "max_interval=2", "horizon=30"])
+        solver = QuotientSolver(build_quotient(fam))
+        rows = itertools.product(*(d.service.values for d in fam.decisions))
+        values = np.array([solver.solve(np.array(r)) for r in rows])
+        for setting in settings:
+            cell = answers[(f"size=3 seed={seed}", setting)]
+            inside = ((values[:, 0] >= setting[0] - 1e-9) & (values[:, 1] <= setting[1] + 1e-9)).any()
+            assert cell["answer"] == ("feasible" if inside else "infeasible"), (seed, setting, cell)
+            if inside:
+                assert cell["values"][0] >= setting[0] - 1e-9 and cell["values"][1] <= setting[1] + 1e-9
+            seen.add(cell["answer"])
+    assert seen == {"feasible", "infeasible"}
+    made = campaign.report(tmp_path / "report", settings=settings)
+    header = next(line for line in made.table2.splitlines() if line.startswith("| success"))
+    assert header.endswith("policy in the box: feasible/infeasible/unknown |")
+    with open(tmp_path / "report" / "table2.csv") as handle:
+        assert {r["answer"] for r in csv.DictReader(handle)} == seen

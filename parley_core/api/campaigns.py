@@ -32,6 +32,10 @@ class Campaign:
         """:func:`campaign_bounds` of this campaign."""
         return campaign_bounds(self.store, name=self.name, **how)
 
+    def check(self, **how: Any) -> int:
+        """:func:`campaign_check` of this campaign."""
+        return campaign_check(self.store, name=self.name, **how)
+
     def report(self, out: str | Path, **how: Any) -> CampaignReport:
         """:func:`campaign_report` of this campaign."""
         return campaign_report(self.store, out, name=self.name, **how)
@@ -89,6 +93,38 @@ def campaign_bounds(
         return bounds.run(tasks, results, workers=workers, progress=reporter.advance)
 
 
+def campaign_check(
+    store: str | Path,
+    *,
+    name: str | None = None,
+    settings: Sequence[str | Sequence[float]] = (),
+    seconds: float = 30.0,
+    again: bool = False,
+    workers: int | None = None,
+    progress: bool | Reporter = True,
+) -> int:
+    """``parley experiment check``: per instance and requirement setting (default: the case
+    study's), whether a policy of the family meets the setting's box
+    (:mod:`parley_core.experiment.answers`), stored; cells already answered are skipped unless
+    ``again``. Returns the number of cells answered now; the report then counts them per setting."""
+    from parley_core.experiment import answers
+    from parley_core.experiment import report as reports
+    from parley_core.experiment.store import Store
+    from parley_core.plugin.manager import load_registry
+
+    with Store(existing_store(store)) as results, reporting(progress) as reporter:
+        chosen, case_name, _settings = results.campaign(name)
+        case = load_registry().get(case_name)
+        records = list(results.runs(chosen))
+        n = len(records[0].objectives) if records else 0
+        wanted = [
+            reports.parse_setting(s if isinstance(s, str) else ",".join(map(str, s)), n) for s in settings
+        ] or list(case.requirement_settings)
+        tasks = answers.plan(results, chosen, case_name, wanted, seconds, again)
+        reporter.stage(f"requirement answers of {chosen}", len(tasks))
+        return answers.run(tasks, results, workers=workers, progress=reporter.advance)
+
+
 def campaign_report(
     store: str | Path,
     out: str | Path,
@@ -116,6 +152,7 @@ def campaign_report(
         chosen, case_name, settings_record = results.campaign(name)
         records = list(results.runs(chosen))
         stored_bounds = results.bounds(chosen)
+        stored_answers = results.answers(chosen)
     if not records:
         raise OptionError(f"campaign {chosen} in {store} has no finished run yet")
     n = len(records[0].objectives)
@@ -133,6 +170,7 @@ def campaign_report(
         figure_setting=setting(figure_setting) if figure_setting is not None else None,
         published=Path(published) if published is not None else None,
         bounds=stored_bounds,
+        answers=stored_answers,
     )
     return CampaignReport(directory=out, table2=text, files=written)
 

@@ -173,6 +173,41 @@ def experiment_bound(
     Console().print(f"{stored} instance bounds computed and stored in {store}")
 
 
+@experiment_app.command("check")
+@user_errors
+def experiment_check(
+    store: StoreOption,
+    name: NameOption = None,
+    setting: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--setting",
+            metavar="B1,B2",
+            help="Requirement setting: worst acceptable value per objective (repeatable; default: the case study's).",
+        ),
+    ] = None,
+    seconds: Annotated[
+        float,
+        typer.Option(
+            "--cell-time",
+            min=0.001,
+            help="Seconds of branch and bound per cell that neither a stored front nor the stored bound answers.",
+        ),
+    ] = 30.0,
+    again: Annotated[bool, typer.Option(help="Answer the cells that have an answer again.")] = False,
+    workers: Annotated[
+        int | None, typer.Option("--workers", "-j", min=1, help="Instances at once (default: one per core).")
+    ] = None,
+) -> None:
+    """Answer each instance x requirement setting: is there a policy of the family inside the box? feasible (a
+    stored front's policy, checked by Storm), infeasible (the stored bound or branch and bound proves none is), or
+    unknown; stored, and counted per setting by `experiment report`."""
+    from parley_core.api.campaigns import campaign_check
+
+    answered = campaign_check(store, name=name, settings=setting or (), seconds=seconds, again=again, workers=workers)
+    Console().print(f"{answered} cells answered and stored in {store}")
+
+
 @experiment_app.command("report")
 @user_errors
 def experiment_report(

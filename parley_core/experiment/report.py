@@ -68,6 +68,9 @@ class Row:
     published_a12: float = float("nan")
     bound_hv: float = float("nan")
     """The hypervolume of the instance's certified bound in the setting's box (nan: none stored)."""
+    answer: str = ""
+    """Whether a policy of the instance's family meets the setting: "feasible", "infeasible",
+    "unknown", or "" if ``parley experiment check`` has not answered the cell."""
 
 
 def parse_setting(text: str, n_objectives: int) -> Setting:
@@ -119,6 +122,7 @@ def analyze(
     settings: Sequence[Setting],
     published: Path | None = None,
     bounds: Mapping[str, np.ndarray] | None = None,
+    answers: Mapping[tuple[str, Setting], Mapping[str, Any]] | None = None,
 ) -> list[Row]:
     by_instance: dict[str, list[RunRecord]] = defaultdict(list)
     for record in records:
@@ -173,6 +177,7 @@ def analyze(
                 igd=igd,
                 igd_verdict=igd_test.verdict if igd_test else "same",
                 bound_hv=instance_bounds.hypervolume((bounds or {}).get(instance), directions, setting),
+                answer=str((answers or {}).get((instance, tuple(setting)), {}).get("answer", "")),
             )
             if theirs:
                 their_hv = tuple(metrics.hypervolume(f, directions, setting) for f in theirs)
@@ -222,6 +227,7 @@ def write_report(
     figure_setting: Setting | None = None,
     published: Path | None = None,
     bounds: Mapping[str, np.ndarray] | None = None,
+    answers: Mapping[tuple[str, Setting], Mapping[str, Any]] | None = None,
 ) -> tuple[str, list[Path]]:
     """Write table2.md, table2.csv and the box plots of a campaign into ``out``; returns
     table2.md's text and the files written. ``settings`` default to the case study's
@@ -236,7 +242,7 @@ def write_report(
         raise OptionError(f"{case.name} declares no requirement settings; give --setting (one bound per objective)")
     if figure_setting is None:
         figure_setting = case.figure_setting if case.figure_setting in settings else settings[0]
-    rows = analyze(records, settings, published, bounds)
+    rows = analyze(records, settings, published, bounds, answers)
     header = [f"{o.name} {'>=' if o.direction is Direction.MAX else '<='}" for o in objectives]
     text = table2_document(campaign, case.name, settings_record, records, rows, settings, header, published is not None)
     out.mkdir(parents=True, exist_ok=True)

@@ -51,6 +51,14 @@ CREATE TABLE IF NOT EXISTS bounds (
     seconds REAL NOT NULL,
     PRIMARY KEY (campaign, instance)
 );
+CREATE TABLE IF NOT EXISTS answers (
+    campaign TEXT NOT NULL REFERENCES campaigns(name),
+    instance TEXT NOT NULL,
+    setting TEXT NOT NULL,
+    answer TEXT NOT NULL,
+    detail TEXT NOT NULL,
+    PRIMARY KEY (campaign, instance, setting)
+);
 """
 
 
@@ -238,6 +246,20 @@ class Store:
                 "INSERT OR REPLACE INTO bounds (campaign, instance, method, points, seconds) VALUES (?, ?, ?, ?, ?)",
                 (campaign, instance, method, json.dumps(rows), seconds),
             )
+
+    def add_answer(self, campaign: str, instance: str, setting, detail: dict[str, Any]) -> None:
+        """Store a cell's requirement answer (:mod:`parley_core.experiment.answers`): ``detail``
+        holds ``answer`` ("feasible", "infeasible" or "unknown") and how it was reached."""
+        with self._transaction():
+            self.connection.execute(
+                "INSERT OR REPLACE INTO answers (campaign, instance, setting, answer, detail) VALUES (?, ?, ?, ?, ?)",
+                (campaign, instance, json.dumps([float(b) for b in setting]), detail["answer"], json.dumps(detail)),
+            )
+
+    def answers(self, campaign: str) -> dict[tuple[str, tuple[float, ...]], dict[str, Any]]:
+        """The stored answers of a campaign's cells, by (instance, setting)."""
+        rows = self.connection.execute("SELECT instance, setting, detail FROM answers WHERE campaign = ?", (campaign,))
+        return {(i, tuple(float(b) for b in json.loads(s))): json.loads(d) for i, s, d in rows}
 
     def bounds(self, campaign: str) -> dict[str, np.ndarray]:
         """The stored bounds of a campaign's instances (points, one row per point)."""

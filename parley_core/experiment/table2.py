@@ -45,6 +45,22 @@ def has_bounds(rows: Sequence[Row]) -> bool:
     return bool(bound_gaps(rows))
 
 
+ANSWERS = ("feasible", "infeasible", "unknown")
+
+
+def has_answers(rows: Sequence[Row]) -> bool:
+    return any(r.answer for r in rows)
+
+
+def answer_text(rows: Sequence[Row], setting: Setting | None = None) -> str:
+    """How many cells (of ``setting``; None: all) are feasible / infeasible / unknown, and how
+    many no check has answered yet."""
+    chosen = [r.answer for r in rows if setting is None or r.setting == setting]
+    text = "/".join(str(chosen.count(a)) for a in ANSWERS)
+    missing = chosen.count("")
+    return text + (f" ({missing} not checked)" if missing else "")
+
+
 def table2_cells(
     rows: Sequence[Row], settings: Sequence[Setting], names: Sequence[str], published: bool
 ) -> tuple[list[str], list[list[str]]]:
@@ -56,6 +72,9 @@ def table2_cells(
         head += ["HV vs published better/worse/same", "median HV >= published"]
     if bounded:
         head.append("median gap to the bound")
+    answered = has_answers(rows)
+    if answered:
+        head.append("policy in the box: feasible/infeasible/unknown")
     groups = len(VERDICTS) + (1 if published else 0)
     totals = np.zeros((groups, 3), dtype=int)
     lines = []
@@ -71,12 +90,16 @@ def table2_cells(
             line.append(f"{at_least}/{len(selected)}")
         if bounded:
             line.append(median_gap_text(rows, setting))
+        if answered:
+            line.append(answer_text(rows, setting))
         lines.append(line)
     total = ["all"] + [""] * (len(names) - 1) + ["/".join(map(str, t)) for t in totals]
     if published:
         total.append("")
     if bounded:
         total.append(median_gap_text(rows))
+    if answered:
+        total.append(answer_text(rows))
     lines.append(total)
     return head, lines
 
@@ -129,6 +152,13 @@ def table2_document(
             if has_bounds(rows)
             else ""
         )
+        + (
+            " Policy in the box: per setting, the instances where a policy of the family meets both bounds "
+            "(feasible: a policy whose values, Storm's, are inside), where none can (infeasible: the certified bound "
+            "or branch and bound proves it) and where neither is known (`parley experiment check`)."
+            if has_answers(rows)
+            else ""
+        )
         + "\n\n"
         + table2_markdown(rows, settings, header, published)
     )
@@ -164,6 +194,7 @@ def rows_csv(rows: Sequence[Row], names: Sequence[str]) -> str:
             "published_a12",
             "bound_hv",
             "median_bound_gap",
+            "answer",
         ]
     )
     for r in rows:
@@ -194,6 +225,7 @@ def rows_csv(rows: Sequence[Row], names: Sequence[str]) -> str:
                 "" if not r.published_hv else r.published_a12,
                 r.bound_hv if np.isfinite(r.bound_hv) else "",
                 float(np.median(bound_gaps([r]))) if bound_gaps([r]) else "",
+                r.answer,
             ]
         )
     return out.getvalue()
