@@ -23,9 +23,14 @@ After 2, robot_grid's full families (generated 5x5 and 6x6 maps, the published m
 1..10): the gap branch and bound leaves after ``--robot-time`` seconds (10 minutes by default;
 ``--only-robot`` prints only this table).
 
+Finally (``--only-methods SECONDS``, alone), the bound methods side by side on the same
+fronts: ideal point, Pareto outer approximation, belief (POMDP) ideal point, and SECONDS of
+branch and bound splitting in the widest decision or where the bound's best scheduler is
+inconsistent (PAYNT's refinement), on robot_grid's full families and tas.
+
 Usage: python benchmarks/optimality.py [--seeds 10] [--bound-time 60] [--skip-gaps | --only-gaps]
        [--skip-full | --only-full] [--no-enumeration] [--time-limit 600]
-       [--robot-time 600 | --only-robot]
+       [--robot-time 600 | --only-robot] [--only-methods SECONDS]
 """
 
 from __future__ import annotations
@@ -285,6 +290,76 @@ def robot_table(seconds: float) -> None:
         )
 
 
+METHODS = [
+    *ROBOT,
+    ("tas (defaults)", None),
+]
+
+
+def _gap(bound, front: np.ndarray, directions, reference) -> float:
+    bound_hv = bound.hypervolume(reference)
+    return (bound_hv - metrics.hypervolume(front, directions, reference)) / bound_hv
+
+
+def methods_table(seconds: float) -> None:
+    """The bound methods side by side on the same front (the default search's, seed 1, on the
+    quotient evaluator): the ideal point, the Pareto outer approximation, the ideal point of
+    the relaxation read as a POMDP (Storm's belief exploration, 60 s a query), and
+    ``seconds`` of branch and bound from the Pareto bound, splitting either where the bound's
+    schedulers disagree (PAYNT's inconsistent holes; for step-bounded weighted sums the best
+    scheduler of the node's first new sum votes by its expected steps) or, without a
+    scheduler, in the widest decision. The gap is the share of the bound's hypervolume the
+    front (with branch and bound's finds) does not cover, at the run's reference point."""
+    from parley_core.optimality import after_search
+    from parley_core.optimality.bound import intersect, refined_bound
+
+    print()
+    print(
+        f"| family | ideal point | Pareto outer | belief (POMDP) | branch and bound {seconds:g} s, widest decision "
+        f"| branch and bound {seconds:g} s, scheduler votes |"
+    )
+    print("|---|---|---|---|---|---|")
+    for label, options in METHODS:
+        name = "tas" if options is None else "robot_grid"
+        case = load_registry().get(name)
+        prep = prepare(case, case.options(options or []))
+        fam = prep.family
+        directions = [o.direction for o in fam.objectives]
+        result = run(prep, SearchSettings(seed=1), bound="none", verify=False)
+        front = np.array(result.front.values)
+        policies = np.array([p.values for p in result.front.policies], dtype=np.int64)
+        cells = []
+        for method in ("ideal", "pareto", "belief"):
+            began = time.perf_counter()
+            found, bounds = after_search.outer(fam, None, method, seconds=60.0)
+            cells.append(
+                f"{100 * _gap(found, front, directions, result.reference):.2f}% ({time.perf_counter() - began:.0f} s)"
+            )
+            if method == "pareto":
+                pareto, relaxed = found, bounds
+        quotient = relaxed.quotient
+        engine = QuotientEvaluator(fam, quotient=quotient, workers=2)
+        try:
+            for vote in (False, True):
+                began = time.perf_counter()
+                exact = branch_and_bound(
+                    fam, quotient, engine.evaluate, seeds=engine.box_seeds(policies, front), time_limit=seconds,
+                    root_cuts=pareto.cuts, bounds=relaxed, fronts=engine.submit_box_fronts,
+                    whole=engine.walks_boxes(), sums_vote=vote,
+                )  # fmt: skip
+                refined = refined_bound(fam, exact)
+                bound = refined if refined.exact else intersect(pareto, refined, "within the Pareto bound")
+                both = np.vstack([front, exact.values])
+                mark = " exact" if refined.exact else ""
+                cells.append(
+                    f"{100 * _gap(bound, both, directions, result.reference):.2f}%{mark} "
+                    f"({time.perf_counter() - began:.0f} s; {exact.nodes} nodes, {exact.pruned} pruned)"
+                )
+        finally:
+            engine.close()
+        print(f"| {label} | " + " | ".join(cells) + " |", flush=True)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", type=int, default=10)
@@ -299,7 +374,16 @@ def main() -> int:
         "--robot-time", type=float, default=600.0, help="branch and bound's budget on robot_grid's full families"
     )
     parser.add_argument("--only-robot", action="store_true", help="only the robot_grid table")
+    parser.add_argument(
+        "--only-methods",
+        type=float,
+        metavar="SECONDS",
+        help="only the bound methods side by side (branch and bound's budget)",
+    )
     args = parser.parse_args()
+    if args.only_methods:
+        methods_table(args.only_methods)
+        return 0
     if args.only_robot:
         robot_table(args.robot_time)
         return 0

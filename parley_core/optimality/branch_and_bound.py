@@ -315,12 +315,13 @@ class BranchAndBound:
         bounds: RelaxedObjectives | None = None,
         fronts: Callable[[list[Box], np.ndarray], Pending] | None = None,
         whole: bool = False,
+        sums_vote: bool = True,
     ) -> None:
         self.start = time.perf_counter()
         self.bounds = bounds = bounds or RelaxedObjectives(family, quotient)
         self.evaluate, self.fronts = evaluate, fronts
         self.time_limit, self.progress = time_limit, progress
-        self.leaf, self.adaptive, self.whole = leaf, adaptive, whole
+        self.leaf, self.adaptive, self.whole, self.sums_vote = leaf, adaptive, whole, sums_vote
         self.signs = bounds.signs
         self.domains = [np.array(d.service.values, dtype=np.int64) for d in family.decisions]
         self.kept = _Kept(self.signs)
@@ -390,7 +391,7 @@ class BranchAndBound:
             self._closed(node, ideal, cuts)
             self._resolve(share, pruned=True)
             return
-        votes = self._try_schedulers(view, lo)
+        votes = self._try_schedulers(view, lo, cuts[len(node.cuts) :])
         d, middle = self._split_point(votes, np.where(consulted, width, 0), lo, hi)
         lo, hi = self._spans(node, lo, hi)
         upper_lo, lower_hi = lo.copy(), hi.copy()
@@ -456,11 +457,19 @@ class BranchAndBound:
         evaluated with its decisions up to ``evaluated`` (those no state consults collapsed);
         what a search that proves something of each node records."""
 
-    def _try_schedulers(self, view, lo: np.ndarray) -> list[np.ndarray]:
+    def _try_schedulers(self, view, lo: np.ndarray, fresh) -> list[np.ndarray]:
         """Where the bounds know their schedulers, each is tried as a policy (by the value each
         decision takes in most states: where they agree, it is the policy that attains the
-        bound); their votes per decision and value."""
+        bound); their votes per decision and value. Where they do not (step-bounded weighted
+        sums) and ``sums_vote``, the best scheduler of the node's first new weighted sum
+        (``fresh``) votes by its expected steps in each value's states."""
         votes = [self.bounds.votes(view, actions) for actions in view.schedulers]
+        if self.sums_vote and not votes and fresh:
+            began = time.perf_counter()
+            found = self.bounds.horizon_votes(view, fresh[0][0])
+            self.costs.bound_seconds += time.perf_counter() - began
+            if found is not None:
+                votes.append(found)
         for vote in votes:
             choice = np.where(vote.sum(axis=1) > 0, vote.argmax(axis=1), lo)
             if self.tried.add(choice):

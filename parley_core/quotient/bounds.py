@@ -175,6 +175,55 @@ class RelaxedObjectives:
             local[has] //= sizes
         return out
 
+    def horizon_votes(self, view: Restricted, weights: np.ndarray) -> np.ndarray | None:
+        """Where the best scheduler of one weighted sum (``weights``, as :meth:`weighted`) acts,
+        as votes per decision and value (its expected steps in states that take the value,
+        :func:`~parley_core.quotient.subfamily.horizon_mass`); None where the weighted sums are
+        not step-bounded ones solved by backward induction."""
+        if not self.weighted_ok:
+            return None
+        r = self.relaxation
+        weights = np.asarray(weights, dtype=float)
+        cumulative, rows, steps = self.cumulative, self.cumulative_rows, self.cumulative_steps
+        coefficients = np.ascontiguousarray(weights[cumulative] * self.signs[cumulative])
+        until = self.until
+        n = r.states
+        left, right, until_steps, reach = np.ones(n, dtype=bool), np.zeros(n, dtype=bool), -1, np.zeros(n)
+        if until >= 0:
+            kernel = self.kernels[until]
+            assert kernel is not None
+            left, right = self.left[until], self.right[until]
+            if kernel.kind is KernelKind.BOUNDED:
+                until_steps = kernel.steps
+            else:
+                reach = self._reach(view, until)
+        gain = float(weights[until] * self.signs[until]) if until >= 0 else 0.0
+        compact = self._compact(view)
+        solve: Any = k.horizon_mass  # a numba dispatcher: mypy cannot see its signature
+        mass = solve(
+            *compact, n, r.rewards, rows, steps, coefficients, self.weighted_horizon, until >= 0,
+            left, right, until_steps, gain, gain * reach, r.initial,
+        )  # fmt: skip
+        return self.action_votes(compact[2], mass)
+
+    def action_votes(self, actions: np.ndarray, mass: np.ndarray) -> np.ndarray:
+        """Per decision and value (its index in the domain), the ``mass`` of the relaxation's
+        ``actions`` that take it: [decisions, values]."""
+        r = self.relaxation
+        out = np.zeros((len(self.sizes), int(self.sizes.max(initial=1))))
+        taken = mass > 0
+        actions, mass = actions[taken], mass[taken]
+        owners = np.searchsorted(r.state_actions, actions, side="right") - 1
+        local = actions - r.state_actions[owners]
+        first, last = r.state_decisions[owners], r.state_decisions[owners + 1]
+        for offset in range(int((last - first).max(initial=0))):
+            has = first + offset < last
+            decisions = r.decisions[(first + offset)[has]]
+            sizes = r.domain_sizes[decisions]
+            np.add.at(out, (decisions, local[has] % sizes), mass[has])
+            local[has] //= sizes
+        return out
+
     def _reach(self, view: Restricted, i: int) -> np.ndarray:
         if i not in view.reach:
             r = self.relaxation

@@ -472,3 +472,89 @@ def predecessors(relaxation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     pointers = np.zeros(r.states + 1, dtype=np.int64)
     np.add.at(pointers, r.targets + 1, 1)
     return np.cumsum(pointers), action_state[entry_action[order]], entry_action[order]
+
+
+@njit(cache=True, nogil=True)
+def horizon_mass(order, state_ptr, action_of, entry_ptr, targets, probabilities, states, rewards, rows, steps,
+                 coefficients, horizon, has_until, left, right, until_steps, gain, terminal, initial):  # fmt: skip
+    """Where the best scheduler of :func:`weighted_horizon`'s weighted sum acts: per action of
+    the sub-family (``compact``'s order) the expected number of steps within the horizon at
+    which it takes that action, before it reaches ``right`` where there is a reachability
+    objective. Its backward induction is :func:`weighted_horizon`'s (the same values), keeping
+    the best action per step and state; a forward pass from ``initial`` sums the mass. What
+    PAYNT's refinement reads off the scheduler: a decision whose states take different values
+    is where the relaxation is looser than any policy."""
+    n_actions = action_of.shape[0]
+    n = order.shape[0]
+    choice = np.full((horizon + 1, n), -1, dtype=np.int64)
+    b_next = np.zeros(states)
+    a_next = np.zeros(states)
+    b_now = np.zeros(states)
+    a_now = np.zeros(states)
+    step_reward = np.zeros(n_actions)
+    for t in range(horizon, -1, -1):
+        if t == horizon or any_step(steps, t):
+            for j in range(n_actions):
+                r = 0.0
+                for i in range(rows.shape[0]):
+                    if t < steps[i]:
+                        r += coefficients[i] * rewards[rows[i], action_of[j]]
+                step_reward[j] = r
+        for i in range(n):
+            s = order[i]
+            best_b = -np.inf
+            best_a = -np.inf
+            arg_b = -1
+            arg_a = -1
+            for j in range(state_ptr[i], state_ptr[i + 1]):
+                vb = step_reward[j]
+                va = vb
+                if t < horizon:
+                    for e in range(entry_ptr[j], entry_ptr[j + 1]):
+                        vb += probabilities[e] * b_next[targets[e]]
+                        va += probabilities[e] * a_next[targets[e]]
+                if vb > best_b:
+                    best_b = vb
+                    arg_b = j
+                if va > best_a:
+                    best_a = va
+                    arg_a = j
+            b_now[s] = best_b
+            choice[t, i] = arg_b
+            if not has_until:
+                continue
+            if until_steps >= 0 and t > until_steps:
+                a_now[s] = best_b
+            elif right[s]:
+                a_now[s] = gain + best_b
+            elif not left[s] or (until_steps >= 0 and t == until_steps):
+                a_now[s] = best_b
+            elif t == horizon and until_steps < 0:
+                a_now[s] = terminal[s] + best_b
+            else:
+                a_now[s] = best_a
+                choice[t, i] = arg_a
+        b_now, b_next = b_next, b_now
+        a_now, a_next = a_next, a_now
+    index = np.full(states, -1, dtype=np.int64)
+    for i in range(n):
+        index[order[i]] = i
+    mass = np.zeros(n_actions)
+    now = np.zeros(states)
+    later = np.zeros(states)
+    now[initial] = 1.0
+    for t in range(horizon):
+        for s in range(states):
+            later[s] = 0.0
+        for s in range(states):
+            m = now[s]
+            if m == 0.0 or index[s] < 0 or (has_until and right[s]):
+                continue
+            j = choice[t, index[s]]
+            if j < 0:
+                continue
+            mass[j] += m
+            for e in range(entry_ptr[j], entry_ptr[j + 1]):
+                later[targets[e]] += m * probabilities[e]
+        now, later = later, now
+    return mass
