@@ -26,11 +26,13 @@ After 2, robot_grid's full families (generated 5x5 and 6x6 maps, the published m
 Finally (``--only-methods SECONDS``, alone), the bound methods side by side on the same
 fronts: ideal point, Pareto outer approximation, belief (POMDP) ideal point, and SECONDS of
 branch and bound splitting in the widest decision or where the bound's best scheduler is
-inconsistent (PAYNT's refinement), on robot_grid's full families and tas.
+inconsistent (PAYNT's refinement), on robot_grid's full families and tas; and
+(``--only-votes SECONDS``, alone) the time to web_ids' and tas' exact fronts split either
+way, in alternating runs.
 
 Usage: python benchmarks/optimality.py [--seeds 10] [--bound-time 60] [--skip-gaps | --only-gaps]
        [--skip-full | --only-full] [--no-enumeration] [--time-limit 600]
-       [--robot-time 600 | --only-robot] [--only-methods SECONDS]
+       [--robot-time 600 | --only-robot] [--only-methods SECONDS] [--only-votes SECONDS]
 """
 
 from __future__ import annotations
@@ -360,6 +362,41 @@ def methods_table(seconds: float) -> None:
         print(f"| {label} | " + " | ".join(cells) + " |", flush=True)
 
 
+def votes_table(seconds: float, rounds: int) -> None:
+    """Branch and bound from the default search's front (2 workers) on web_ids and tas, split
+    by width or where the weighted sums' best schedulers disagree, in alternating runs of at
+    most ``seconds``: time to the exact front, nodes, pruned, policies evaluated."""
+    from parley_core.optimality import after_search
+
+    print()
+    print("| case study | split by | exact | seconds | nodes | pruned | evaluated |")
+    print("|---|---|---|---|---|---|---|")
+    for name in ("web_ids", "tas"):
+        case = load_registry().get(name)
+        prep = prepare(case, case.options([]))
+        fam = prep.family
+        result = run(prep, SearchSettings(seed=1), bound="none", verify=False)
+        front = np.array(result.front.values)
+        policies = np.array([p.values for p in result.front.policies], dtype=np.int64)
+        pareto, relaxed = after_search.outer(fam, None, "pareto")
+        engine = QuotientEvaluator(fam, quotient=relaxed.quotient, workers=2)
+        try:
+            for vote in [False, True] * rounds:
+                began = time.perf_counter()
+                exact = branch_and_bound(
+                    fam, relaxed.quotient, engine.evaluate, seeds=engine.box_seeds(policies, front),
+                    time_limit=seconds, root_cuts=pareto.cuts, bounds=relaxed, fronts=engine.submit_box_fronts,
+                    whole=engine.walks_boxes(), sums_vote=vote,
+                )  # fmt: skip
+                print(
+                    f"| {name} | {'scheduler votes' if vote else 'width'} | {'yes' if exact.exact else 'no'} | "
+                    f"{time.perf_counter() - began:.1f} | {exact.nodes} | {exact.pruned} | {exact.evaluated} |",
+                    flush=True,
+                )
+        finally:
+            engine.close()
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", type=int, default=10)
@@ -380,7 +417,13 @@ def main() -> int:
         metavar="SECONDS",
         help="only the bound methods side by side (branch and bound's budget)",
     )
+    parser.add_argument(
+        "--only-votes", type=float, metavar="SECONDS", help="only web_ids and tas split by width against by votes"
+    )
     args = parser.parse_args()
+    if args.only_votes:
+        votes_table(args.only_votes, 2)
+        return 0
     if args.only_methods:
         methods_table(args.only_methods)
         return 0

@@ -24,7 +24,7 @@ from parley_core.evaluate import Evaluator, EvaluatorKind, evaluate_policies, ma
 from parley_core.evaluate.cache import CachingEvaluator
 from parley_core.family.prepare import Prepared
 from parley_core.family.scenarios import ScenarioModel
-from parley_core.model import Family, Front, Policy, Valued
+from parley_core.model import Direction, Family, Front, Policy, Valued
 from parley_core.optimality import after_search as run_bounds
 from parley_core.optimality.records import BoundMethod, Stopped
 from parley_core.progress import NullReporter, Reporter, timed
@@ -34,7 +34,7 @@ from parley_core.verify import Verification, VerifyPath, by_search, check_with_s
 if TYPE_CHECKING:
     from parley_core.optimality.bound import Bound
     from parley_core.optimality.branch_and_bound import ExactResult
-    from parley_core.optimality.requirement import Answer
+    from parley_core.optimality.requirement import Answer, Requirement
 
 
 @frozen(kw_only=True)
@@ -243,6 +243,35 @@ class _Steps:
             reporter.note("branch and bound interrupted; writing the front and the bound so far")
         return _Searched(baseline=baseline, result=result, values=values, refined=refined, outer=cheap[0])
 
+    def search_on(self, engine: Evaluator, searched: _Searched, requirement: Requirement, seconds: float) -> _Searched:
+        """A check's search once more, for ``seconds``, if nothing it evaluated meets the
+        requirement: started from the population closest to the box (the least shortfall
+        below its corner, scaled by the levels), with the next seed; both searches' policies."""
+        done = searched.result
+        signs = np.array([1.0 if d is Direction.MAX else -1.0 for d in self.directions])
+        if seconds < 1.0 or done.interrupted or requirement.met(done.values, signs).any():
+            return searched
+        corner = requirement.corner
+        scale = np.where(requirement.constrained, np.maximum(1.0, np.abs(corner)), np.inf)
+        with np.errstate(invalid="ignore", over="ignore"):
+            short = np.nan_to_num(np.maximum(corner - done.values * signs, 0.0) / scale, nan=np.inf).sum(axis=1)
+        closest = done.policies[np.argsort(short, kind="stable")[: self.settings.population]]
+        settings = attrs.evolve(self.settings, generations=None, time_limit=seconds, seed=self.settings.seed + 1)
+        archive = CachingEvaluator(engine, len(self.family.decisions), len(self.family.objectives))
+        self.reporter.stage("search (closer to the box)", None)
+        with timed(self.timings, "search"):
+            more = search(self.family, engine, settings, archive=archive, progress=self.reporter.advance, warm=closest)
+        merged = attrs.evolve(
+            done,
+            policies=np.vstack([done.policies, more.policies]),
+            values=np.vstack([done.values, more.values]),
+            evaluations=done.evaluations + more.evaluations,
+            generations=done.generations + more.generations,
+            seconds=done.seconds + more.seconds,
+            stopped_by=more.stopped_by,
+        )
+        return attrs.evolve(searched, result=merged, values=merged.values)
+
     def candidates(self, searched: _Searched) -> tuple[np.ndarray, np.ndarray]:
         """The evaluated policies that meet the constraints and no other evaluated one
         dominates, with their values."""
@@ -424,6 +453,10 @@ def check(
     engine = steps.evaluator()
     try:
         searched = steps.search(engine)
+        if time_limit is not None:  # nothing inside yet: the rest of the search's share, from the closest
+            searched = steps.search_on(
+                engine, searched, requirement, SEARCH_SHARE * time_limit - (time.perf_counter() - began)
+            )
         left = None if time_limit is None else max(0.0, time_limit - (time.perf_counter() - began))
         with timed(steps.timings, "bound"):
             found = run_bounds.answer(prepared.family, engine, requirement, searched.result, left, reporter)

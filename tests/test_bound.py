@@ -127,6 +127,34 @@ def test_the_kernels_ideal_point_is_storms_on_the_relaxation(name, case):
         assert abs(a - b) <= 1e-6 * max(1.0, abs(b)), (name, objective.name, a, b)
 
 
+@pytest.mark.parametrize("name", ["robot_grid 5x5", "web_ids", "tas"])
+def test_a_weighted_sums_best_scheduler_votes_for_the_one_policy_of_its_sub_family(name):
+    """Step-bounded weighted sums know no scheduler of their own; the best scheduler of one,
+    read off its backward induction, votes by its expected steps in each value's states.
+    Restricted to one policy, its votes name that policy's value of every decision a reached
+    state consults, and no other; its steps within the horizon are at most the horizon."""
+    from parley_core.quotient.bounds import RelaxedObjectives
+
+    case = dict(_families())[name]
+    relaxed = RelaxedObjectives(case, build_quotient(case))
+    assert relaxed.weighted_ok
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        policy = np.array([rng.integers(0, size) for size in relaxed.sizes], dtype=np.int64)
+        view = relaxed.restrict(policy, policy.copy())
+        votes = relaxed.horizon_votes(view, np.ones(len(case.objectives)))
+        assert votes is not None
+        consulted = relaxed.consulted(view)
+        assert (np.count_nonzero(votes, axis=1) <= 1).all()
+        taken = votes.sum(axis=1) > 0
+        assert not (taken & ~consulted).any()
+        assert (votes.argmax(axis=1)[taken] == policy[taken]).all()
+        assert 0 < votes.sum() <= relaxed.weighted_horizon + 1e-9
+    # over the whole family the relaxation's scheduler is free to disagree with itself
+    everything = relaxed.restrict(np.zeros(len(relaxed.sizes), dtype=np.int64), relaxed.sizes - 1)
+    assert relaxed.horizon_votes(everything, np.ones(len(case.objectives))).sum() > 0
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["robot_grid 5x5", "web_ids", "tas", "synchronised"])
 def test_storms_multi_objective_points_of_the_relaxation_lie_inside_the_pareto_bound(name):
