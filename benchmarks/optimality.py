@@ -298,9 +298,11 @@ METHODS = [
 ]
 
 
-def _gap(bound, front: np.ndarray, directions, reference) -> float:
+def _gap(bound, front: np.ndarray, directions, reference) -> str:
+    """The gap as a percentage (a gap that rounds to zero, of either sign, is 0.00%)."""
     bound_hv = bound.hypervolume(reference)
-    return (bound_hv - metrics.hypervolume(front, directions, reference)) / bound_hv
+    text = f"{100 * (bound_hv - metrics.hypervolume(front, directions, reference)) / bound_hv:.2f}%"
+    return "0.00%" if text == "-0.00%" else text
 
 
 def methods_table(seconds: float) -> None:
@@ -354,7 +356,7 @@ def methods_table(seconds: float) -> None:
                 both = np.vstack([front, exact.values])
                 mark = " exact" if refined.exact else ""
                 cells.append(
-                    f"{100 * _gap(bound, both, directions, result.reference):.2f}%{mark} "
+                    f"{_gap(bound, both, directions, result.reference)}{mark} "
                     f"({time.perf_counter() - began:.0f} s; {exact.nodes} nodes, {exact.pruned} pruned)"
                 )
         finally:

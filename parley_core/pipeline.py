@@ -458,6 +458,8 @@ def check(
                 engine, searched, requirement, SEARCH_SHARE * time_limit - (time.perf_counter() - began)
             )
         left = None if time_limit is None else max(0.0, time_limit - (time.perf_counter() - began))
+        if searched.result.interrupted:  # Ctrl-C in the search: the answer so far, unknown unless found
+            left = 0.0
         with timed(steps.timings, "bound"):
             found = run_bounds.answer(prepared.family, engine, requirement, searched.result, left, reporter)
     except BaseException:

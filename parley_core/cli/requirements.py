@@ -20,7 +20,6 @@ from parley_core.cli.options import (
     CaseArgument,
     DecisionOption,
     ForceOption,
-    GenerationsOption,
     JsonOption,
     ObserveOption,
     OutOption,
@@ -51,14 +50,33 @@ CheckTimeOption = Annotated[
 ]
 
 
+CheckGenerationsOption = Annotated[
+    int | None,
+    typer.Option(
+        "--generations",
+        min=1,
+        show_default=False,
+        help="Generations of the first search (default: 40); if it finds nothing inside the box, the search goes "
+        "on from the closest policies for the rest of its share (a quarter of --time-limit).",
+    ),
+]
+
+
 def _command() -> str:
     return shlex.join(["parley", *sys.argv[1:]])
 
 
 def _print(found: Check, json_: bool) -> None:
+    document = found.document
     if json_:
-        print(json.dumps(dict(found.document), indent=2))
-        return
+        print(json.dumps(dict(document), indent=2))
+    else:
+        _print_answer(found)
+    if document.get("branch_and_bound", {}).get("stopped_by") == "interrupted":
+        raise typer.Exit(130)
+
+
+def _print_answer(found: Check) -> None:
     console = Console()
     requirement = " and ".join(found.requirement)
     document = found.document
@@ -66,7 +84,7 @@ def _print(found: Check, json_: bool) -> None:
         values = ", ".join(f"{k} {fmt(v)}" for k, v in (found.values or {}).items())
         console.print(
             f"[green]feasible[/]: {found.policy} meets {requirement} ({values}; Storm's values); "
-            f"{document.get('policies_inside', 1)} policies found inside"
+            f"the run holds {document.get('policies_inside', 1)} policies inside the box"
         )
         console.print(f"controller: {found.directory / 'controller.json'}")
     elif found.answer == "infeasible":
@@ -96,7 +114,7 @@ def check_command(
     set_: SetOption = None,
     time_limit: CheckTimeOption = 300.0,
     seed: SeedOption = SEED,
-    generations: GenerationsOption = None,
+    generations: CheckGenerationsOption = None,
     workers: WorkersOption = None,
     out: OutOption = None,
     force: ForceOption = False,
@@ -141,7 +159,7 @@ def check_model_command(
     ] = None,
     time_limit: CheckTimeOption = 300.0,
     seed: SeedOption = SEED,
-    generations: GenerationsOption = None,
+    generations: CheckGenerationsOption = None,
     workers: WorkersOption = None,
     out: OutOption = None,
     force: ForceOption = False,
