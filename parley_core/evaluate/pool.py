@@ -135,6 +135,20 @@ def stop_pool(pool: ProcessPool, abort: bool = False) -> None:
     pool.shutdown(wait=not abort, kill_workers=abort)
 
 
+def each_result(function: Callable[[Any], Any], tasks, workers: int | None = None):
+    """``function(task)`` of every task, in order: in this process with one worker (or where
+    none may be started), else over a pool of spawned processes, each result as it is
+    ready in turn (what a campaign's per-instance steps need)."""
+    workers = min(default_workers(workers), max(1, len(tasks)))
+    if workers == 1:
+        for task in tasks:
+            yield function(task)
+        return
+    with spawn_pool(workers) as pool:
+        for future in [pool.submit(function, task) for task in tasks]:
+            yield future.result()
+
+
 def spawn_pool(
     workers: int, initializer: Callable[..., Any] | None = None, initargs: tuple[Any, ...] = ()
 ) -> ProcessPool:

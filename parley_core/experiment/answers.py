@@ -28,7 +28,7 @@ from attrs import frozen
 
 from parley_core.constraints import Constraint, Operator
 from parley_core.errors import OptionError
-from parley_core.evaluate.pool import default_workers, spawn_pool
+from parley_core.evaluate.pool import each_result
 from parley_core.experiment.store import Store
 from parley_core.model import Direction, Family
 from parley_core.progress import Progress
@@ -200,12 +200,6 @@ def run(tasks: Sequence[AnswerTask], store: Store, workers: int | None = None, p
         if progress:
             progress(1)
 
-    workers = min(default_workers(workers), max(1, len(tasks)))
-    if workers == 1:
-        for task in tasks:
-            finish(*compute(task))
-    else:
-        with spawn_pool(workers) as pool:
-            for future in [pool.submit(compute, task) for task in tasks]:
-                finish(*future.result())
+    for found in each_result(compute, tasks, workers):
+        finish(*found)
     return stored

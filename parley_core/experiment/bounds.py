@@ -12,7 +12,7 @@ import numpy as np
 from attrs import frozen
 
 from parley_core.errors import OptionError
-from parley_core.evaluate.pool import default_workers, spawn_pool
+from parley_core.evaluate.pool import each_result
 from parley_core.experiment.store import Store
 from parley_core.optimality.after_search import family_bound
 from parley_core.optimality.records import BoundMethod
@@ -68,14 +68,8 @@ def run(tasks: Sequence[BoundTask], store: Store, workers: int | None = None, pr
         if progress:
             progress(1)
 
-    workers = min(default_workers(workers), max(1, len(tasks)))
-    if workers == 1:
-        for task in tasks:
-            finish(*compute(task))
-    else:
-        with spawn_pool(workers) as pool:
-            for future in [pool.submit(compute, task) for task in tasks]:
-                finish(*future.result())
+    for found in each_result(compute, tasks, workers):
+        finish(*found)
     return stored
 
 

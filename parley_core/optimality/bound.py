@@ -253,14 +253,7 @@ def refined_bound(family: Family, result: ExactResult) -> Bound:
         + (f" (not covering {result.unknown} policies that have no value)" if result.unknown else ""),
         exact=result.exact,
         seconds=result.seconds,
-        search=SearchCounts(
-            nodes=result.nodes,
-            pruned=result.pruned,
-            evaluated=result.evaluated,
-            open=result.open,
-            unknown=result.unknown,
-            stopped_by=result.stopped_by,
-        ),
+        search=result.counts(),
     )
 
 

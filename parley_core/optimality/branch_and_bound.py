@@ -43,7 +43,7 @@ from attrs import field, frozen
 from parley_core.boxes import FLOOR, Box, BoxValues, Pending, Ready, box_rows, local_front
 from parley_core.model import Family
 from parley_core.optimality.archive import Archive, depth, region_points, robust_front
-from parley_core.optimality.records import Stopped
+from parley_core.optimality.records import SearchCounts, Stopped
 from parley_core.quotient.bounds import RelaxedObjectives
 from parley_core.quotient.coloring import Quotient
 
@@ -114,6 +114,17 @@ class ExactResult:
     open: int
     seconds: float
     stopped_by: Stopped
+
+    def counts(self) -> SearchCounts:
+        """What the search did, as the run directory records it."""
+        return SearchCounts(
+            nodes=self.nodes,
+            pruned=self.pruned,
+            evaluated=self.evaluated,
+            open=self.open,
+            unknown=self.unknown,
+            stopped_by=self.stopped_by,
+        )
 
 
 def branch_and_bound(

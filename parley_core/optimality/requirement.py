@@ -244,14 +244,7 @@ class RequirementSearch(BranchAndBound):
             closed=tuple(self.closed),
             open_share=0.0 if verdict is Verdict.INFEASIBLE else max(0.0, 1.0 - self.resolved / self.total),
             open_best=best,
-            counts=SearchCounts(
-                nodes=result.nodes,
-                pruned=result.pruned,
-                evaluated=result.evaluated,
-                open=result.open,
-                unknown=result.unknown,
-                stopped_by=result.stopped_by,
-            ),
+            counts=result.counts(),
             seconds=result.seconds,
             result=result,
         )

@@ -188,6 +188,20 @@ class RelaxedObjectives:
         coefficients = np.ascontiguousarray(weights[cumulative] * self.signs[cumulative])
         until = self.until
         n = r.states
+        left, right, until_steps, reach = self._until_parts(view, until)
+        gain = float(weights[until] * self.signs[until]) if until >= 0 else 0.0
+        compact = self._compact(view)
+        solve: Any = k.horizon_mass  # a numba dispatcher: mypy cannot see its signature
+        mass = solve(
+            *compact, n, r.rewards, rows, steps, coefficients, self.weighted_horizon, until >= 0,
+            left, right, until_steps, gain, gain * reach, r.initial,
+        )  # fmt: skip
+        return self.action_votes(compact[2], mass)
+
+    def _until_parts(self, view: Restricted, until: int) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
+        """A weighted sum's reachability objective ``until`` (-1: none): its left and right
+        states, its step bound (-1: unbounded) and, unbounded, its bound past the horizon."""
+        n = self.relaxation.states
         left, right, until_steps, reach = np.ones(n, dtype=bool), np.zeros(n, dtype=bool), -1, np.zeros(n)
         if until >= 0:
             kernel = self.kernels[until]
@@ -197,14 +211,7 @@ class RelaxedObjectives:
                 until_steps = kernel.steps
             else:
                 reach = self._reach(view, until)
-        gain = float(weights[until] * self.signs[until]) if until >= 0 else 0.0
-        compact = self._compact(view)
-        solve: Any = k.horizon_mass  # a numba dispatcher: mypy cannot see its signature
-        mass = solve(
-            *compact, n, r.rewards, rows, steps, coefficients, self.weighted_horizon, until >= 0,
-            left, right, until_steps, gain, gain * reach, r.initial,
-        )  # fmt: skip
-        return self.action_votes(compact[2], mass)
+        return left, right, until_steps, reach
 
     def action_votes(self, actions: np.ndarray, mass: np.ndarray) -> np.ndarray:
         """Per decision and value (its index in the domain), the ``mass`` of the relaxation's
@@ -387,15 +394,8 @@ class RelaxedObjectives:
         cumulative, rows, steps = self.cumulative, self.cumulative_rows, self.cumulative_steps
         coefficients = np.ascontiguousarray(weights[:, cumulative] * self.signs[cumulative])
         n = r.states
-        left, right, until_steps, reach = np.ones(n, dtype=bool), np.zeros(n, dtype=bool), -1, np.zeros(n)
-        if until >= 0:  # not always self.until: ideal() bounds each bounded probability this way
-            kernel = self.kernels[until]
-            assert kernel is not None
-            left, right = self.left[until], self.right[until]
-            if kernel.kind is KernelKind.BOUNDED:
-                until_steps = kernel.steps
-            else:
-                reach = self._reach(view, until)
+        # not always self.until: ideal() bounds each bounded probability this way
+        left, right, until_steps, reach = self._until_parts(view, until)
         horizon = max([*steps.tolist(), until_steps, 0])
         gains = weights[:, until] * self.signs[until] if until >= 0 else np.zeros(len(weights))
         solve: Any = k.weighted_horizons  # numba dispatchers: mypy cannot see their signatures
