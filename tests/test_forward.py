@@ -97,8 +97,11 @@ def test_only_step_bounded_rewards_are_walked():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("workers", "whole"), [(1, False), (2, False), (1, True), (2, True)])
-def test_branch_and_bound_over_walked_boxes_finds_the_enumerated_front(workers, whole):
+@pytest.mark.parametrize(
+    ("workers", "whole", "votes"),
+    [(1, False, False), (2, False, False), (1, True, False), (2, True, False), (2, False, True)],
+)
+def test_branch_and_bound_over_walked_boxes_finds_the_enumerated_front(workers, whole, votes):
     fam = family("tas", ["rounds=6"], width=4)
     quotient, evaluate = _solver(fam)
     # the reference walks every policy too: a front of solved values can differ from one of
@@ -113,15 +116,19 @@ def test_branch_and_bound_over_walked_boxes_finds_the_enumerated_front(workers, 
             boxes.extend(batch)
             return engine.submit_box_fronts(batch, signs)
 
-        result = branch_and_bound(fam, quotient, evaluate, leaf=64, adaptive=False, fronts=fronts, whole=whole)
+        result = branch_and_bound(
+            fam, quotient, evaluate, leaf=64, adaptive=False, fronts=fronts, whole=whole, sums_vote=votes
+        )
         assert engine.describe()["boxes_walked"] is True
         if workers == 1:  # in this process: every box went through the walker
             assert walked and sum(walked) == result.evaluated
     assert result.exact and 0 < result.evaluated <= len(values)
     _assert_same_front(result.values, values, fam)
     np.testing.assert_allclose(evaluate(result.policies), result.values, rtol=1e-12, atol=1e-15)
-    # with ``whole`` the leaves keep a decision's whole range (4 values here) for the walk's
-    # blocks; bisection alone leaves them balanced (64 policies: widths of 2)
+    if votes:  # split where the weighted sums' schedulers disagree: the leaves' shapes follow them
+        return
+    # split by width: with ``whole`` the leaves keep a decision's whole range (4 values here)
+    # for the walk's blocks; bisection alone leaves them balanced (64 policies: widths of 2)
     widest = [int((box.hi - box.lo + 1).max()) for box in boxes]
     assert (min(widest) == 4) if whole else (max(widest) <= 2)
 
